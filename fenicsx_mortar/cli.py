@@ -1,0 +1,54 @@
+"""Command line: ``fenicsx-mortar run SCENE.toml --out DIR``.
+
+Exit codes: 0 converged, 1 the run stopped early (outputs up to the last converged step are
+kept), 2 bad input (one message naming the problem, no traceback).
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="fenicsx-mortar",
+                                     description="2D finite-deformation mortar contact on FEniCSx")
+    sub = parser.add_subparsers(dest="command", required=True)
+    run = sub.add_parser("run", help="run a scene file")
+    run.add_argument("scene", type=Path, help="scene file (TOML, see docs/scenes.md)")
+    run.add_argument("--out", type=Path, default=None,
+                     help="output directory (default: results/<scene name>)")
+    check = sub.add_parser("check", help="validate a scene file (and its mesh) without solving")
+    check.add_argument("scene", type=Path)
+    args = parser.parse_args(argv)
+
+    from mpi4py import MPI
+
+    from .scene import SceneError, load_scene
+    comm = MPI.COMM_WORLD
+    try:
+        scene = load_scene(args.scene)
+        if args.command == "check":
+            from .meshing import build_domain
+            build_domain(scene, comm)
+            if comm.rank == 0:
+                print(f"{args.scene}: OK")
+            return 0
+        from .run import solve
+        out = args.out or Path("results") / args.scene.stem
+        result = solve(scene, out, comm)
+    except SceneError as e:
+        if comm.rank == 0:
+            print(f"fenicsx-mortar: error: {e}", file=sys.stderr)
+        return 2
+    if comm.rank == 0:
+        t = result.timings
+        print(f"summary: {'converged' if result.converged else 'NOT converged'}, "
+              f"{len(result.steps)} steps, "
+              f"{sum(s['newton_iterations'] for s in result.steps)} Newton iterations, "
+              f"{t.get('total', 0):.2f} s total; outputs in {out}")
+    return 0 if result.converged else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

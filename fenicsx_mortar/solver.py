@@ -1,0 +1,228 @@
+"""PETSc SNES Newton driver with load stepping, step cutting and contact hooks.
+
+A Newton step counts as converged only when the residual norm is below ``atol`` AND below
+``rtol`` times the step's first residual (or that first residual was already below
+``atol``) AND every hook (contact pair) accepts its own KKT residual: a huge first residual
+makes a relative decrease alone meaningless (DESIGN.md §5).
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Protocol
+
+import numpy as np
+from petsc4py import PETSc
+
+from . import _dolfinx as dx
+from .bulk import Bulk
+from .scene import SolverSettings, Steps
+
+
+class Hook(Protocol):
+    """What a contact pair plugs into the Newton loop (all methods collective)."""
+
+    def update(self, u) -> None: ...              # new iterate: kinematics, active set
+    def add_residual(self, b, bc_dofs) -> None: ...
+    def add_jacobian(self, A, bc_dofs) -> None: ...
+    def newton_ok(self) -> bool: ...              # e.g. active set unchanged since last update
+    def augment(self) -> bool: ...                # ALM update; True → solve again
+    def begin_step(self) -> None: ...
+    def accept_step(self) -> None: ...
+    def reject_step(self) -> None: ...
+    def record(self) -> dict: ...
+    def couplings(self) -> np.ndarray: ...        # (k, 2) global dof pairs for the sparsity
+
+
+class Timings(dict):
+    """Seconds by phase; ``with timings('phase'):`` adds to it."""
+
+    def __call__(self, phase: str):
+        timings = self
+
+        class _T:
+            def __enter__(self):
+                self.t0 = time.perf_counter()
+
+            def __exit__(self, *exc):
+                timings[phase] = timings.get(phase, 0.0) + time.perf_counter() - self.t0
+        return _T()
+
+
+@dataclass
+class StepResult:
+    converged: bool
+    iterations: int = 0
+    residuals: list[float] = field(default_factory=list)
+    augmentations: int = 0
+    reason: str = ""
+
+
+_REASONS = {v: k for k, v in vars(PETSc.SNES.ConvergedReason).items() if isinstance(v, int)}
+
+
+class NewtonSolver:
+    """SNES (newtonls + line search, LU by default) on bulk forms plus hooks."""
+
+    def __init__(self, bulk: Bulk, settings: SolverSettings, hooks: list[Hook],
+                 timings: Timings, matrix=None):
+        self.bulk, self.settings, self.hooks, self.timings = bulk, settings, hooks, timings
+        self.u = bulk.u
+        self.b = dx.create_vector(bulk.residual)
+        self.A = matrix if matrix is not None else dx.create_matrix(bulk.jacobian)
+        self.x = dx.function_vector(self.u).copy()
+        self.bc_dofs = dx.bc_dofs(bulk.bcs)
+        self._callback_time = 0.0
+        self.history: list[float] = []
+        comm = bulk.domain.mesh.comm
+        self.snes = PETSc.SNES().create(comm)
+        prefix = f"fm{id(self)}_"
+        self.snes.setOptionsPrefix(prefix)
+        opts = PETSc.Options()
+        defaults = {"snes_type": "newtonls", "snes_linesearch_type": settings.line_search,
+                    "snes_max_it": settings.max_iterations, "snes_max_funcs": 100000}
+        defaults.update(_linear_solver_options(settings.linear_solver))
+        for k, v in defaults.items():
+            opts[prefix + k] = v
+        for k, v in settings.petsc.items():
+            opts[prefix + k.lstrip("-")] = "" if v is True else v
+        self.snes.setFunction(self._residual, self.b)
+        self.snes.setJacobian(self._jacobian, self.A)
+        self.snes.setConvergenceTest(self._converged)
+        self.snes.setFromOptions()
+        self.snes.getKSP().setFromOptions()
+
+    # -- SNES callbacks -------------------------------------------------------------
+    def _set_iterate(self, x) -> None:
+        x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+        x.copy(dx.function_vector(self.u))
+        self.u.x.scatter_forward()
+        for h in self.hooks:
+            h.update(self.u)
+
+    def _residual(self, snes, x, b) -> None:
+        t0 = time.perf_counter()
+        self._set_iterate(x)
+        with self.timings("bulk_assembly"):
+            dx.assemble_residual(b, self.bulk.residual, self.bulk.jacobian, self.bulk.bcs, x,
+                                 extra=self._add_hook_residuals if self.hooks else None)
+        self._callback_time += time.perf_counter() - t0
+
+    def _add_hook_residuals(self, b) -> None:
+        with self.timings("contact"):
+            for h in self.hooks:
+                h.add_residual(b, self.bc_dofs)
+
+    def _jacobian(self, snes, x, A, P) -> None:
+        t0 = time.perf_counter()
+        with self.timings("bulk_assembly"):
+            dx.assemble_jacobian(A, self.bulk.jacobian, self.bulk.bcs,
+                                 extra=self._add_hook_jacobians if self.hooks else None)
+        self._callback_time += time.perf_counter() - t0
+
+    def _add_hook_jacobians(self, A) -> None:
+        with self.timings("contact"):
+            for h in self.hooks:
+                h.add_jacobian(A, self.bc_dofs)
+
+    def _converged(self, snes, it, norms):
+        fnorm = norms[2]
+        if it == 0:
+            self._r0 = fnorm
+        self.history.append(float(fnorm))
+        s = self.settings
+        if not math.isfinite(fnorm):
+            return PETSc.SNES.ConvergedReason.DIVERGED_FNORM_NAN
+        small = fnorm <= s.atol and (fnorm <= s.rtol * self._r0 or self._r0 <= s.atol)
+        if small and all(h.newton_ok() for h in self.hooks):
+            return PETSc.SNES.ConvergedReason.CONVERGED_FNORM_ABS
+        if it >= s.max_iterations:
+            return PETSc.SNES.ConvergedReason.DIVERGED_MAX_IT
+        return PETSc.SNES.ConvergedReason.ITERATING
+
+    # -- one load step ----------------------------------------------------------------
+    def solve_step(self, max_augmentations: int = 50) -> StepResult:
+        """Newton solves (one per augmentation) from the current state at the current load."""
+        res = StepResult(converged=False)
+        for aug in range(max_augmentations + 1):
+            self.history = []
+            self._callback_time = 0.0
+            t0 = time.perf_counter()
+            self.snes.solve(None, self.x)
+            self.timings["linear_solve"] = (self.timings.get("linear_solve", 0.0)
+                                            + time.perf_counter() - t0 - self._callback_time)
+            reason = self.snes.getConvergedReason()
+            res.iterations += self.snes.getIterationNumber()
+            res.residuals.extend(self.history)
+            if reason <= 0:
+                res.reason = f"Newton failed: {_REASONS.get(reason, reason)} after " \
+                             f"{self.snes.getIterationNumber()} iterations, residuals " \
+                             + ", ".join(f"{r:.3e}" for r in self.history)
+                return res
+            self._set_iterate(self.x)
+            if not any([h.augment() for h in self.hooks]):
+                res.converged, res.augmentations = True, aug
+                return res
+        res.reason = f"augmented Lagrangian: KKT not reached in {max_augmentations} augmentations"
+        return res
+
+    def save_state(self) -> PETSc.Vec:
+        return self.x.copy()
+
+    def restore_state(self, saved: PETSc.Vec) -> None:
+        saved.copy(self.x)
+        self._set_iterate(self.x)
+
+    def unconstrained_residual(self) -> PETSc.Vec:
+        """F(u) without Dirichlet modification (contact included): reactions live here."""
+        b = self.b.duplicate()
+        dx.assemble_unconstrained_residual(b, self.bulk.residual)
+        for h in self.hooks:
+            h.add_residual(b, np.zeros(0, dtype=np.int32))
+        return b
+
+
+def _linear_solver_options(name: str) -> dict:
+    if name == "gmres-hypre":
+        return {"ksp_type": "gmres", "pc_type": "hypre", "ksp_rtol": 1e-12}
+    return {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": name}
+
+
+def run_load_steps(solver: NewtonSolver, steps: Steps, on_step: Callable[[int, float, StepResult, int], None],
+                   on_progress: Callable[[str], None] = lambda s: None,
+                   max_augmentations: int = 50) -> tuple[bool, str]:
+    """Advance pseudo-time through ``steps``; halve a failed increment up to ``max_cuts``
+    times in a row. Returns (completed, message)."""
+    t = 0.0
+    k = 0
+    for target in steps.targets():
+        dt = target - t
+        cuts = 0
+        while t < target - 1e-14 * max(1.0, abs(target)):
+            t_try = min(t + dt, target)
+            saved = solver.save_state()
+            solver.bulk.set_time(t_try)
+            for h in solver.hooks:
+                h.begin_step()
+            on_progress(f"step {k + 1} t={t_try:.6g} ...")
+            res = solver.solve_step(max_augmentations)
+            if res.converged:
+                for h in solver.hooks:
+                    h.accept_step()
+                t = t_try
+                k += 1
+                on_step(k, t, res, cuts)
+                continue
+            for h in solver.hooks:
+                h.reject_step()
+            solver.restore_state(saved)
+            solver.bulk.set_time(t)
+            cuts += 1
+            if cuts > steps.max_cuts:
+                return False, (f"stopped at pseudo-time {t:.6g} (last converged step {k}): the "
+                               f"increment to {t_try:.6g} failed after {steps.max_cuts} cuts; "
+                               f"{res.reason}")
+            dt *= 0.5
+            on_progress(f"cut: {res.reason}; retrying with increment {dt:.3g}")
+    return True, f"completed {k} steps up to pseudo-time {t:.6g}"

@@ -1,0 +1,28 @@
+#!/usr/bin/env bash
+# Idempotent set-up on Debian 12: Debian's DOLFINx 0.5.2 stack, then a venv that sees it
+# (--system-site-packages) with fenicsx_mortar installed editable. Fast when already done.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+pkgs=(python3-dolfinx-real python3-gmsh python3-pytest python3-matplotlib python3-scipy
+      python3-pil python3-venv python3-setuptools python3-wheel openmpi-bin)
+missing=()
+for p in "${pkgs[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  sudo=""; [ "$(id -u)" -ne 0 ] && sudo=sudo
+  echo "setup: installing ${missing[*]}"
+  $sudo apt-get update -q
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -q "${missing[@]}"
+fi
+
+if [ ! -x .venv/bin/python ]; then
+  /usr/bin/python3 -m venv --system-site-packages .venv
+fi
+# Re-install only when the project metadata changed (editable install: code changes need nothing).
+stamp=.venv/.fenicsx_mortar-installed
+if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
+  .venv/bin/python -m pip install -q --no-build-isolation --no-deps -e . 
+  touch "$stamp"
+fi
