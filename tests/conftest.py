@@ -1,0 +1,28 @@
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+MPI_ENV = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
+           "OMPI_MCA_rmaps_base_oversubscribe": "1"}
+
+
+def run_cli(*args: str, ranks: int = 1, timeout: float = 600) -> subprocess.CompletedProcess:
+    """Run ``python -m fenicsx_mortar ARGS`` (under mpirun when ranks > 1)."""
+    cmd = [sys.executable, "-m", "fenicsx_mortar", *args]
+    return run_python(cmd, ranks=ranks, timeout=timeout)
+
+
+def run_python(cmd: list[str], ranks: int = 1, timeout: float = 600) -> subprocess.CompletedProcess:
+    if ranks > 1:
+        cmd = ["mpirun", "-n", str(ranks), "--oversubscribe", *cmd]
+    env = {**os.environ, **MPI_ENV}
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=ROOT, env=env)
+
+
+@pytest.fixture
+def root() -> Path:
+    return ROOT
