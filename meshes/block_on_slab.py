@@ -1,0 +1,72 @@
+"""B5 frictional block on a slab: two structured rectangles with non-matching meshes."""
+from __future__ import annotations
+
+from numbers import Integral
+
+import gmsh
+
+_CELLS = ("quadrilateral", "triangle")
+_SIDES = ("bottom", "right", "top", "left")
+
+
+def build(model, *, cell: str = "quadrilateral", block_nx: int = 10, block_ny: int = 5,
+          slab_nx: int = 24, slab_ny: int = 8) -> None:
+    """Block [0, 1] x [1, 1.5] resting on slab [-1, 2] x [0, 1] (BENCHMARKS.md B5).
+
+    Both are structured grids. They touch along y = 1, x in [0, 1], with separate
+    (duplicated) nodes: the bodies share no node and the default meshes are non-matching
+    (block spacing 0.1, slab spacing 0.125).
+
+    Parameters (keyword only, defaults in brackets):
+        cell:     "quadrilateral" [default] or "triangle" (each grid quad split into 2).
+        block_nx, block_ny: block elements along x and y [10, 5].
+        slab_nx, slab_ny:   slab elements along x and y [24, 8].
+
+    Physical groups (tags in brackets):
+        dim 2: "block" [1], "slab" [2].
+        dim 1: "block_bottom" [3] (y = 1, slave), "block_right" [4] (x = 1),
+               "block_top" [5] (y = 1.5), "block_left" [6] (x = 0),
+               "slab_bottom" [7] (y = 0), "slab_right" [8] (x = 2),
+               "slab_top" [9] (y = 1, master), "slab_left" [10] (x = -1).
+    Nodes lie at all four corners of each body.
+    """
+    if cell not in _CELLS:
+        raise ValueError(f"cell must be one of {_CELLS}, got {cell!r}")
+    for name, value in dict(block_nx=block_nx, block_ny=block_ny,
+                            slab_nx=slab_nx, slab_ny=slab_ny).items():
+        if isinstance(value, bool) or not isinstance(value, Integral) or value < 1:
+            raise ValueError(f"{name} must be a positive integer, got {value!r}")
+    # Options are global to the gmsh session: reset those a previous build may have changed.
+    gmsh.option.setNumber("Mesh.ElementOrder", 1)
+    gmsh.option.setNumber("Mesh.RecombineAll", 0)
+    gmsh.option.setNumber("Mesh.SubdivisionAlgorithm", 0)
+
+    block = _rectangle(model, 0.0, 1.0, 1.0, 0.5, block_nx, block_ny, cell)
+    slab = _rectangle(model, -1.0, 0.0, 3.0, 1.0, slab_nx, slab_ny, cell)
+    groups = [(2, block[0], "block"), (2, slab[0], "slab")]
+    for body, (_, curves) in (("block", block), ("slab", slab)):
+        groups += [(1, c, f"{body}_{side}") for c, side in zip(curves, _SIDES)]
+    for tag, (dim, entity, name) in enumerate(groups, start=1):
+        model.addPhysicalGroup(dim, [entity], tag)
+        model.setPhysicalName(dim, tag, name)
+    model.mesh.generate(2)
+    wanted = 3 if cell == "quadrilateral" else 2  # gmsh element types: 3 = quad4, 2 = tri3
+    if list(model.mesh.getElementTypes(2)) != [wanted]:
+        raise RuntimeError(f"mesh is not all {cell}: {model.mesh.getElementTypes(2)}")
+
+
+def _rectangle(model, x0: float, y0: float, width: float, height: float,
+               nx: int, ny: int, cell: str) -> tuple[int, list[int]]:
+    """Structured rectangle with its own points; returns (surface, [bottom, right, top, left])."""
+    occ = model.occ
+    pts = [occ.addPoint(x, y, 0.0) for x, y in
+           [(x0, y0), (x0 + width, y0), (x0 + width, y0 + height), (x0, y0 + height)]]
+    curves = [occ.addLine(pts[i], pts[(i + 1) % 4]) for i in range(4)]
+    surface = occ.addPlaneSurface([occ.addCurveLoop(curves)])
+    occ.synchronize()
+    for curve, n in zip(curves, (nx, ny, nx, ny)):
+        model.mesh.setTransfiniteCurve(curve, n + 1)
+    model.mesh.setTransfiniteSurface(surface, "Left", pts)
+    if cell == "quadrilateral":
+        model.mesh.setRecombine(2, surface)
+    return surface, curves
