@@ -124,10 +124,19 @@ def local_to_global_dofs(V) -> np.ndarray:
 
 
 def vertex_dofs_all(V, vertices: np.ndarray) -> np.ndarray:
-    """(n, 2) local unrolled dofs (x, y) of the P1 vector space at the given vertices."""
-    bx = fem.locate_dofs_topological(V.sub(0), 0, vertices)
-    by = fem.locate_dofs_topological(V.sub(1), 0, vertices)
-    return np.stack([bx, by], axis=1)
+    """(n, 2) local unrolled dofs (x, y) of the P1 vector space at ``vertices``, in order.
+    (P1 cell dofs follow the cell's vertex order.)"""
+    msh = V.mesh
+    tdim = msh.topology.dim
+    msh.topology.create_connectivity(tdim, 0)
+    c2v = msh.topology.connectivity(tdim, 0).array
+    blocks = V.dofmap.list.array
+    nv = msh.topology.index_map(0).size_local + msh.topology.index_map(0).num_ghosts
+    v2b = np.full(nv, -1, dtype=np.int64)
+    v2b[c2v] = blocks
+    bs = V.dofmap.index_map_bs
+    b = v2b[np.asarray(vertices)]
+    return np.stack([b * bs, b * bs + 1], axis=1)
 
 
 # ----------------------------------------------------------------------------- PETSc
@@ -213,3 +222,14 @@ def measures(msh: Mesh, cell_tags, facet_tags):
     dx = ufl.Measure("dx", domain=msh, subdomain_data=cell_tags)
     ds = ufl.Measure("ds", domain=msh, subdomain_data=facet_tags)
     return dx, ds
+
+
+def sparsity_pattern(a_form):
+    """The bulk form's sparsity pattern, still open for extra (contact) couplings."""
+    return fem.create_sparsity_pattern(a_form)
+
+
+def matrix_from_sparsity(a_form, pattern) -> PETSc.Mat:
+    """Insert extra couplings first with ``pattern.insert(local_blocks, local_blocks)``."""
+    pattern.assemble()
+    return cpp.la.petsc.create_matrix(a_form.mesh.comm, pattern)

@@ -128,7 +128,10 @@ def _supports(scene: Scene, dom: Domain, V):
             const = dx.constant(msh, 0.0)
             comps[c] = (const, value, scene.curve(d.curve))
             bcs.append(dx.dirichletbc(const, dofs[c], V, k))
-        supports.append(Support(d.label, comps, {c: dofs[c] for c in comps}))
+        label = d.label
+        if any(s.label == label for s in supports):  # keep every support's reactions
+            label = f"{label}#{i}"
+        supports.append(Support(label, comps, {c: dofs[c] for c in comps}))
     return supports, bcs
 
 

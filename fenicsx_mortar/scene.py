@@ -115,7 +115,7 @@ class Enforcement:
     """Penalty or augmented Lagrangian (Uzawa) enforcement. DESIGN.md §5."""
     type: Literal["penalty", "alm"] = "alm"
     epsilon: float | None = None  # default: 100 E / h of the slave side
-    tolerance: float = 1e-10      # ALM: KKT residual (relative to the pressure scale)
+    tolerance: float = 1e-8       # ALM: KKT residual (relative to the pressure scale)
     max_augmentations: int = 30
 
 
@@ -160,8 +160,8 @@ class SolverSettings:
     """Newton (PETSc SNES) settings. A step converges when the residual norm is below
     ``atol`` and below ``rtol`` times the first residual of the step (and, with contact,
     the KKT residual is below the pair's tolerance)."""
-    atol: float = 1e-10
-    rtol: float = 1e-9
+    atol: float = 1e-9
+    rtol: float = 1e-8
     max_iterations: int = 25
     line_search: Literal["basic", "bt", "l2", "cp"] = "bt"
     linear_solver: Literal["mumps", "superlu_dist", "gmres-hypre"] = "mumps"
