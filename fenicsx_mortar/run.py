@@ -43,7 +43,7 @@ def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM
     (after every converged step, so a failed run keeps what converged)."""
     scene.validate()
     rank0 = comm.rank == 0
-    log = log or (print if rank0 else (lambda s: None))
+    log = log or (_log_line if rank0 else (lambda s: None))
     timings = Timings()
     t_start = time.perf_counter()
     out = Path(out) if out is not None else None
@@ -127,6 +127,11 @@ def _step_line(k: int, t: float, res: StepResult, cuts: int) -> str:
     aug = f", {res.augmentations} augmentations" if res.augmentations else ""
     cut = f", {cuts} cuts" if cuts else ""
     return f"  step {k:3d}  t = {t:<10.6g} Newton {res.iterations:3d}{aug}{cut}  |R| = {r:.2e}"
+
+
+def _log_line(s: str) -> None:
+    # on a terminal, first wipe the live progress line
+    print(("\r\033[K" if sys.stdout.isatty() else "") + s, flush=True)
 
 
 def _progress_printer() -> Callable[[str], None]:

@@ -1,0 +1,88 @@
+"""Result types shared by the contact kernels (mortar and node-to-segment).
+
+A kernel returns, for a nodal quantity q_j of the slave nodes (weighted gap g̃_j or nodal
+area A_j, DESIGN.md §4–5), a list of *contributions*: contribution k adds ``value[k]`` to
+q at slave node ``node[k]``, and depends on the local coordinates
+
+    [x_{s_0}, y_{s_0}, …, x_{s_{S-1}}, y_{s_{S-1}}, x_{m_0}, y_{m_0}, …, x_{m_{L-1}}, y_{m_{L-1}}]
+
+with s = ``slave_nodes[k]`` (indices into the slave chain) and m = ``master_nodes[k]``
+(indices into the master chain); ``grad[k]`` and ``hess[k]`` are the exact first and second
+derivatives with respect to these m = 2(S + L) coordinates. A node index may appear twice
+in one row (chain ends, repeated stencil entries); the derivative belonging to each slot is
+then to be *added* into the global vector/matrix, which is what scatter-add assembly does.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import NamedTuple, Tuple
+
+import numpy as np
+
+
+@dataclass
+class NodalContributions:
+    """Per-contribution value/grad/hess of a nodal quantity (weighted gap or area) of slave
+    node `node`, depending on local nodes `slave_nodes`/`master_nodes`."""
+
+    node: np.ndarray          # (K,) slave node index (into the slave chain)
+    slave_nodes: np.ndarray   # (K, S) slave node indices of the local variables (first 2S local coords)
+    master_nodes: np.ndarray  # (K, L) master node indices (next 2L local coords)
+    value: np.ndarray         # (K,)
+    grad: np.ndarray          # (K, m)   m = 2*(S+L), ordering [xs0, ys0, xs1, ys1, ..., xm0, ym0, ...]
+    hess: np.ndarray          # (K, m, m)
+
+    @property
+    def size(self) -> int:
+        return int(self.node.shape[0])
+
+    @property
+    def m(self) -> int:
+        return 2 * (self.slave_nodes.shape[1] + self.master_nodes.shape[1])
+
+    @classmethod
+    def empty(cls, S: int, L: int) -> "NodalContributions":
+        m = 2 * (S + L)
+        return cls(np.zeros(0, dtype=np.int64), np.zeros((0, S), dtype=np.int64),
+                   np.zeros((0, L), dtype=np.int64), np.zeros(0), np.zeros((0, m)),
+                   np.zeros((0, m, m)))
+
+    def global_indices(self, n_slave: int) -> np.ndarray:
+        """(K, m) positions of the local coordinates in the stacked coordinate vector
+        ``[slave_x.ravel(), master_x.ravel()]`` (slave node i -> 2i, 2i+1; master node l ->
+        2 n_slave + 2l, 2 n_slave + 2l + 1)."""
+        nodes = np.concatenate([self.slave_nodes, self.master_nodes + n_slave], axis=1)
+        return np.stack([2 * nodes, 2 * nodes + 1], axis=2).reshape(nodes.shape[0], -1)
+
+
+class Triplets(NamedTuple):
+    """A sparse matrix as COO triplets (duplicates are meant to be summed)."""
+
+    rows: np.ndarray
+    cols: np.ndarray
+    vals: np.ndarray
+
+    def to_dense(self, shape: Tuple[int, int]) -> np.ndarray:
+        out = np.zeros(shape)
+        np.add.at(out, (self.rows, self.cols), self.vals)
+        return out
+
+
+def nodal_sum(contrib: NodalContributions, n_slave: int) -> np.ndarray:
+    """Σ of the contributions per slave node: q_j for j = 0 … n_slave−1."""
+    return np.bincount(contrib.node, weights=contrib.value, minlength=n_slave)
+
+
+def chain_links(seg: np.ndarray, n_nodes: int) -> Tuple[np.ndarray, np.ndarray]:
+    """For each node, the segment that ends at it and the one that starts at it (−1: none).
+
+    Chains are ordered (segment i = (c, d) runs from c to d), so every node has at most one
+    of each; a closed chain has both everywhere.
+    """
+    seg = np.asarray(seg, dtype=np.int64).reshape(-1, 2)
+    before = np.full(n_nodes, -1, dtype=np.int64)
+    after = np.full(n_nodes, -1, dtype=np.int64)
+    idx = np.arange(seg.shape[0], dtype=np.int64)
+    before[seg[:, 1]] = idx
+    after[seg[:, 0]] = idx
+    return before, after

@@ -1,0 +1,211 @@
+"""Mortar segment-to-segment integrals: weighted gaps, nodal areas, D and M (DESIGN.md §4).
+
+For a candidate pair (slave segment s = [x_a, x_b], master segment m = [x_c, x_d]):
+
+1. Segmentation on the slave segment, x_s(ζ) = (1−ζ) x_a + ζ x_b. The shadow of the
+   master segment ends where the slave point lies on the line through a master end node
+   perpendicular to the curve's nodal tangent t̄ there (:meth:`MasterCurve.node_tangents`,
+   for the polyline the averaged tangent of DESIGN.md eq. 3.4):
+       (x_s(ζ) − x_c)·t̄_c = 0  ⇒  ζ_c = (x_c − x_a)·t̄_c / ((x_b − x_a)·t̄_c),   same for d.
+   Integration domain [ζ_lo, ζ_hi] = [0, 1] ∩ [min(ζ_c, ζ_d), max(ζ_c, ζ_d)]; empty → the
+   pair is dropped. Adjacent master segments share t̄ at their common node, so their
+   domains tile the slave segment without gap or overlap.
+   Pairs whose slave and master do not face each other, (x_b − x_a)·t̄ ≥ 0 at either master
+   node (outward normals less than 90° apart), are dropped too: they are no contact
+   configuration (e.g. the back side of a closed master) and would divide by ~0.
+2. Gauss–Legendre points ζ_g on [ζ_lo, ζ_hi]; closest-point projection ξ_g of x_s(ζ_g)
+   onto the master segment's curve (:meth:`MasterCurve.project`; closed form for the
+   polyline); gap g = (x_s − x_m(ξ))·n_m(ξ), n_m = e3 × a/|a|
+   (:meth:`MasterCurve.gap`).
+3. With dΓ = |x_b − x_a| dζ (current configuration), for j ∈ {a, b}:
+       g̃_j += ∫ N_j g dΓ,   A_j += ∫ N_j dΓ   over [ζ_lo, ζ_hi].
+   The nodal area A_j counts only the part of the slave segment that has a master. That is
+   the boundary treatment for a slave surface extending beyond the master's end: there is
+   nothing to be in contact with, so g̃_j/A_j stays the average gap over the supported part
+   and a node without any master support has A_j = 0 (and no contribution at all).
+   A_j is integrated exactly (closed form); g̃_j with the Gauss rule.
+4. Mortar matrices (values only): D_jk = ∫ N_j N_k dΓ, M_jl = ∫ N_j N̂_l(ξ) dΓ with the
+   master's linear shape functions N̂ = (1−ξ, ξ) on the segment's nodes (c, d).
+
+All of g̃_j and A_j is computed with :class:`~.ad.Jet2` over the pair's local coordinates
+[x_a, y_a, x_b, y_b, then the L stencil nodes of the master segment], vectorized over
+pairs and Gauss points (batch (n_pairs, n_gauss)).
+"""
+from __future__ import annotations
+
+from typing import Sequence, Tuple
+
+import numpy as np
+
+from . import ad
+from .ad import Jet2, Vec2
+from .curves import MasterCurve
+from .kernel import NodalContributions, Triplets
+
+
+def gauss_legendre_01(n: int) -> Tuple[np.ndarray, np.ndarray]:
+    """Gauss–Legendre points and weights on [0, 1] (weights sum to 1)."""
+    s, w = np.polynomial.legendre.leggauss(int(n))
+    return 0.5 * (s + 1.0), 0.5 * w
+
+
+def _interval(xa: Vec2, xb: Vec2, P: Sequence[Vec2], curve: MasterCurve, pm: np.ndarray):
+    """ζ_lo, ζ_hi (jets or arrays) and the boolean 'slave faces master' per pair."""
+    xc, xd = curve.node_points(pm, P)
+    tc, td = curve.node_tangents(pm, P)
+    e = ad.sub(xb, xa)
+    den_c = ad.dot(e, tc)
+    den_d = ad.dot(e, td)
+    facing = (ad.value(den_c) < 0.0) & (ad.value(den_d) < 0.0)
+    # keep the discarded entries finite; they are dropped by the caller
+    den_c = ad.where(facing, den_c, -1.0)
+    den_d = ad.where(facing, den_d, -1.0)
+    zc = ad.dot(ad.sub(xc, xa), tc) * ad.reciprocal(den_c)
+    zd = ad.dot(ad.sub(xd, xa), td) * ad.reciprocal(den_d)
+    zc_v, zd_v = ad.value(zc), ad.value(zd)
+    zmin = ad.where(zc_v <= zd_v, zc, zd)
+    zmax = ad.where(zc_v <= zd_v, zd, zc)
+    lo = ad.where(ad.value(zmin) > 0.0, zmin, 0.0)
+    hi = ad.where(ad.value(zmax) < 1.0, zmax, 1.0)
+    return lo, hi, facing
+
+
+def _pair_points(slave_x, slave_seg, curve, ps, pm):
+    seg = np.asarray(slave_seg, dtype=np.int64).reshape(-1, 2)[ps]
+    xs = np.asarray(slave_x, dtype=float)
+    return seg[:, 0], seg[:, 1], xs[seg[:, 0]], xs[seg[:, 1]], curve.local_points(pm)
+
+
+def segmentation(slave_x: np.ndarray, slave_seg: np.ndarray, curve: MasterCurve,
+                 pairs: Tuple[np.ndarray, np.ndarray]) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Integration intervals of the candidate pairs (values only).
+
+    Returns ``(zeta_lo, zeta_hi, keep)``, each (n_pairs,): the interval [ζ_lo, ζ_hi] ⊂ [0, 1]
+    of the slave segment served by the master segment and whether the pair contributes
+    (faces the master and ζ_hi > ζ_lo).
+    """
+    ps = np.asarray(pairs[0], dtype=np.int64)
+    pm = np.asarray(pairs[1], dtype=np.int64)
+    _, _, xa, xb, P = _pair_points(slave_x, slave_seg, curve, ps, pm)
+    lo, hi, facing = _interval((xa[:, 0], xa[:, 1]), (xb[:, 0], xb[:, 1]),
+                               curve.split_points(P), curve, pm)
+    lo, hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
+    return lo, hi, facing & (hi > lo)
+
+
+def _pair_block(X: np.ndarray, pm: np.ndarray, curve: MasterCurve, n_gauss: int):
+    """Jet kernel for a block of contributing pairs with local coordinates X (K, m).
+
+    Returns the jets (over X) of g̃_a, g̃_b, A_a, A_b, and the values ζ_g, ξ_g (n_gauss, K)
+    and the Gauss weights times the length element (n_gauss, K) for D and M.
+    """
+    L = curve.stencil_size
+    v = Jet2.variables(X)
+    xa, xb = (v[0], v[1]), (v[2], v[3])
+    P = [(v[4 + 2 * i], v[5 + 2 * i]) for i in range(L)]
+    lo, hi, _ = _interval(xa, xb, P, curve, pm)
+
+    # Gauss-point stage over the variables z = [ζ_lo, ζ_hi, local coordinates]: there the
+    # integrand only touches the few coordinates the curve evaluation needs (sparse jets),
+    # and the dependence through ζ_lo, ζ_hi (on all of them) is applied once per pair by
+    # the chain rule (ad.substitute), not per Gauss point.
+    Z = np.concatenate([lo.val[:, None], hi.val[:, None], X], axis=1)
+    vz = Jet2.variables(Z)
+    z_lo, z_hi = vz[0], vz[1]
+    xa, xb = (vz[2], vz[3]), (vz[4], vz[5])
+    P = [(vz[6 + 2 * i], vz[7 + 2 * i]) for i in range(L)]
+    width = z_hi - z_lo
+    J = ad.norm(ad.sub(xb, xa)) * width          # ∫_lo^hi f dΓ = J Σ_g w_g f(ζ_g)
+
+    s, w = gauss_legendre_01(n_gauss)
+    # Gauss batch (n_gauss, K): the Gauss axis first, so per-pair quantities (K,) broadcast
+    # and the Gauss sums add contiguous slabs
+    s, w = s[:, None], w[:, None]
+    zeta = z_lo + width * s
+    x_s = ad.add(xa, ad.scale(ad.sub(xb, xa), zeta))
+    g, xi = curve.gap(pm[None, :], x_s, P)
+
+    wg = g * w
+    I0 = wg.sum(0)                               # Σ w g
+    I1 = (wg * zeta).sum(0)                      # Σ w ζ g
+    gap_b = J * I1
+    gap_a = J * I0 - gap_b
+    area_b = J * (z_lo + z_hi) * 0.5             # ∫ ζ dζ over [lo, hi], exact
+    area_a = J - area_b
+    jets = [ad.substitute(q, (lo, hi)) for q in (gap_a, gap_b, area_a, area_b)]
+    return jets, zeta.val, np.broadcast_to(ad.value(xi), zeta.shape), J.val * w
+
+
+def weighted_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarray,
+                  master_seg: np.ndarray, curve: MasterCurve,
+                  pairs: Tuple[np.ndarray, np.ndarray], n_gauss: int = 2,
+                  block: int = 2048
+                  ) -> Tuple[NodalContributions, NodalContributions, Triplets, Triplets]:
+    """Mortar weighted gaps g̃_j and nodal areas A_j with exact derivatives, and D, M.
+
+    ``curve`` must be built on (master_x, master_seg); ``pairs = (slave_segments,
+    master_segments)`` are candidates (e.g. from :func:`.search.candidate_pairs`).
+    Returns ``(gap, area, D, M)``: per-pair contributions for slave nodes a and b (local
+    coordinates [x_a, y_a, x_b, y_b, stencil of the master segment], m = 2(2 + L)), and D
+    (slave × slave), M (slave × master node) as COO triplets. Contribution order: node a
+    of every contributing pair, then node b of every contributing pair.
+
+    The jet work runs over blocks of ``block`` pairs: the arrays then stay a few MB, which
+    avoids the page-fault cost of fresh huge temporaries and stays in cache.
+    """
+    if n_gauss < 2:
+        raise ValueError("mortar integration needs n_gauss >= 2")
+    master_seg = np.asarray(master_seg, dtype=np.int64).reshape(-1, 2)
+    L = curve.stencil_size
+    m = 2 * (2 + L)
+    ps = np.asarray(pairs[0], dtype=np.int64)
+    pm = np.asarray(pairs[1], dtype=np.int64)
+
+    # cheap float pass first: only contributing pairs get the (…, m, m) jet work
+    _, _, keep = segmentation(slave_x, slave_seg, curve, (ps, pm))
+    ps, pm = ps[keep], pm[keep]
+    K = ps.shape[0]
+    empty_coo = Triplets(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))
+    if K == 0:
+        e = NodalContributions.empty(2, L)
+        return e, NodalContributions.empty(2, L), empty_coo, empty_coo
+
+    na, nb, xa0, xb0, P0 = _pair_points(slave_x, slave_seg, curve, ps, pm)
+    stencil = curve.stencil(pm)
+    X = np.concatenate([xa0, xb0, P0.reshape(K, 2 * L)], axis=1)
+
+    # outputs: rows [0, K) for node a, [K, 2K) for node b
+    val = np.empty((2, 2 * K))
+    grad = np.empty((2, 2 * K, m))
+    hess = np.empty((2, 2 * K, m, m))
+    z = np.empty((n_gauss, K))
+    xv = np.empty((n_gauss, K))
+    Jw = np.empty((n_gauss, K))
+    for b0 in range(0, K, block):
+        b1 = min(b0 + block, K)
+        jets, z[:, b0:b1], xv[:, b0:b1], Jw[:, b0:b1] = _pair_block(X[b0:b1], pm[b0:b1],
+                                                                     curve, n_gauss)
+        for q, (jet_a, jet_b) in enumerate((jets[:2], jets[2:])):
+            for off, jet in ((0, jet_a), (K, jet_b)):
+                val[q, off + b0:off + b1] = jet.val
+                grad[q, off + b0:off + b1] = jet.grad
+                hess[q, off + b0:off + b1] = jet.hess
+
+    node = np.concatenate([na, nb])
+    slave_nodes = np.tile(np.stack([na, nb], axis=1), (2, 1))
+    master_nodes = np.tile(stencil, (2, 1))
+    gap = NodalContributions(node, slave_nodes, master_nodes, val[0], grad[0], hess[0])
+    area = NodalContributions(node.copy(), slave_nodes.copy(), master_nodes.copy(),
+                              val[1], grad[1], hess[1])
+
+    # mortar matrices (values only), 1-point-per-Gauss sums of N_j N_k and N_j N̂_l
+    Na = (1.0 - z) * Jw
+    Nb = z * Jw
+    mc, md = master_seg[pm, 0], master_seg[pm, 1]
+    D = Triplets(np.concatenate([na, na, nb, nb]), np.concatenate([na, nb, na, nb]),
+                 np.concatenate([(Na * (1.0 - z)).sum(0), (Na * z).sum(0),
+                                 (Nb * (1.0 - z)).sum(0), (Nb * z).sum(0)]))
+    M = Triplets(np.concatenate([na, na, nb, nb]), np.concatenate([mc, md, mc, md]),
+                 np.concatenate([(Na * (1.0 - xv)).sum(0), (Na * xv).sum(0),
+                                 (Nb * (1.0 - xv)).sum(0), (Nb * xv).sum(0)]))
+    return gap, area, D, M

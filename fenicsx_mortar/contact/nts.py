@@ -1,0 +1,105 @@
+"""Node-to-segment (NTS) contact, the classical baseline (DESIGN.md §1, §3, §5).
+
+For each slave node j:
+
+* projection onto the master curve: among the candidate master segments, those with the
+  closest-point parameter ξ̄ ∈ [0, 1] qualify and the one with the smallest |g| wins;
+  a node that projects onto no segment (beyond the master's ends, or into the blind
+  wedge outside a convex master corner) gets no contribution;
+* point gap g_j = (x_j − x_m(ξ̄))·n_m(ξ̄);
+* nodal area A_j = ½(|x_j − x_{j−1}| + |x_{j+1} − x_j|) (adjacent slave segments, current
+  configuration); at a chain end the missing neighbour contributes 0;
+* weighted gap g̃_j = A_j g_j, so that g̃_j / A_j = g_j and the same enforcement code
+  (DESIGN.md §5) serves mortar and NTS.
+
+Local coordinates of contribution j (S = 3 slave nodes, then the L master stencil nodes):
+    [x_{j−1}, y_{j−1}, x_j, y_j, x_{j+1}, y_{j+1}, x_{m0}, y_{m0}, …]
+At a chain end the missing neighbour's slot holds j itself; its area term is switched off
+by ``where`` on a finite ghost, so that slot has exactly zero derivative and the
+scatter-added derivatives stay right.
+"""
+from __future__ import annotations
+
+from typing import Tuple
+
+import numpy as np
+
+from . import ad
+from .ad import Jet2
+from .curves import MasterCurve
+from .kernel import NodalContributions, chain_links
+
+
+def _closest_segments(slave_x, nodes, segs, curve):
+    """Per node, the qualifying candidate segment with the smallest |g| (values only)."""
+    P = curve.split_points(curve.local_points(segs))
+    xj = (slave_x[nodes, 0], slave_x[nodes, 1])
+    xi = curve.project(segs, xj, P)
+    x_m, a_m = curve.evaluate(segs, xi, P)
+    g = ad.dot(ad.sub(xj, x_m), curve.normal(a_m))
+    ok = (xi >= 0.0) & (xi <= 1.0)
+    nodes, segs, g = nodes[ok], segs[ok], g[ok]
+    order = np.lexsort((np.abs(g), nodes))
+    nodes, segs = nodes[order], segs[order]
+    first = np.ones(nodes.shape[0], dtype=bool)
+    first[1:] = nodes[1:] != nodes[:-1]
+    return nodes[first], segs[first]
+
+
+def node_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarray,
+              master_seg: np.ndarray, curve: MasterCurve,
+              pairs: Tuple[np.ndarray, np.ndarray]) -> Tuple[NodalContributions, NodalContributions]:
+    """NTS weighted gaps g̃_j = A_j g_j and nodal areas A_j with exact derivatives.
+
+    ``pairs = (slave_segments, master_segments)`` are segment candidates (e.g. from
+    :func:`.search.candidate_pairs`); the nodes of a slave segment inherit its master
+    candidates. ``curve`` must be built on (master_x, master_seg). Returns ``(gap, area)``
+    with one contribution per slave node in contact range, S = 3 (see module docstring).
+    """
+    slave_x = np.asarray(slave_x, dtype=float)
+    slave_seg = np.asarray(slave_seg, dtype=np.int64).reshape(-1, 2)
+    L = curve.stencil_size
+    ps = np.asarray(pairs[0], dtype=np.int64)
+    pm = np.asarray(pairs[1], dtype=np.int64)
+    n_ms = max(int(np.asarray(master_seg).reshape(-1, 2).shape[0]), 1)
+
+    nodes = np.concatenate([slave_seg[ps, 0], slave_seg[ps, 1]])
+    segs = np.concatenate([pm, pm])
+    key = np.unique(nodes * n_ms + segs)
+    nodes, segs = key // n_ms, key % n_ms
+    nodes, segs = _closest_segments(slave_x, nodes, segs, curve)
+    K = nodes.shape[0]
+    if K == 0:
+        return NodalContributions.empty(3, L), NodalContributions.empty(3, L)
+
+    before, after = chain_links(slave_seg, slave_x.shape[0])
+    has_p = before[nodes] >= 0
+    has_q = after[nodes] >= 0
+    prev = np.where(has_p, slave_seg[before[nodes], 0], nodes)
+    nxt = np.where(has_q, slave_seg[after[nodes], 1], nodes)
+    slave_nodes = np.stack([prev, nodes, nxt], axis=1)
+    stencil = curve.stencil(segs)
+
+    X = np.concatenate([slave_x[slave_nodes].reshape(K, 6),
+                        curve.local_points(segs).reshape(K, 2 * L)], axis=1)
+    v = Jet2.variables(X)
+    xp, xj, xq = (v[0], v[1]), (v[2], v[3]), (v[4], v[5])
+    P = [(v[6 + 2 * i], v[7 + 2 * i]) for i in range(L)]
+
+    # a missing neighbour sits on node j: measure to a finite ghost instead of |0|
+    # (whose derivative is undefined) and switch the term off
+    ghost_p = (ad.where(has_p, xp[0], xj[0] + 1.0), xp[1])
+    ghost_q = (ad.where(has_q, xq[0], xj[0] + 1.0), xq[1])
+    l_p = ad.where(has_p, ad.norm(ad.sub(xj, ghost_p)), 0.0)
+    l_q = ad.where(has_q, ad.norm(ad.sub(ghost_q, xj)), 0.0)
+    A = (l_p + l_q) * 0.5
+
+    xi = curve.project(segs, xj, P)
+    x_m, a_m = curve.evaluate(segs, xi, P)
+    g = ad.dot(ad.sub(xj, x_m), curve.normal(a_m))
+    gt = A * g
+
+    gap = NodalContributions(nodes, slave_nodes, stencil, gt.val, gt.grad, gt.hess)
+    area = NodalContributions(nodes.copy(), slave_nodes.copy(), stencil.copy(),
+                              A.val, np.array(A.grad), A.hess)
+    return gap, area

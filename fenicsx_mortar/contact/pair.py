@@ -1,0 +1,220 @@
+"""A contact pair as a Newton-loop hook: surfaces → search → curve → weighted gaps →
+enforcement → assembly, plus its per-step record and interface outputs.
+
+Every rank holds both (1D) surfaces and evaluates the kernels; each slave node's terms are
+inserted by the rank that owns its dofs, so every term enters the global system once.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import scipy.sparse as sp
+from mpi4py import MPI
+
+from .. import _dolfinx as dx
+from ..output import write_atomic
+from ..scene import ContactPair, Scene, SceneError
+from . import assembly, mortar, nts
+from .curves import Polyline
+from .enforcement import ENFORCEMENTS
+from .kernel import nodal_sum
+from .search import candidate_pairs
+from .surface import Surface, build_surface
+
+
+class PairHook:
+    def __init__(self, pair: ContactPair, slave: Surface, master: Surface, E_slave: float,
+                 V, timings):
+        self.pair, self.slave, self.master, self.timings = pair, slave, master, timings
+        self.comm = slave.comm
+        h = float(np.mean(np.linalg.norm(slave.X[slave.seg[:, 1]] - slave.X[slave.seg[:, 0]], axis=1)))
+        self.h = h
+        eps = pair.enforcement.epsilon or 100.0 * E_slave / h
+        self.enforcement = ENFORCEMENTS[pair.enforcement.type](
+            eps, slave.n, pair.enforcement.tolerance)
+        self.radius = pair.search_radius or 2.0 * h
+        self.dofs = np.concatenate([slave.dofs.ravel(), master.dofs.ravel()])
+        self.n_coords = len(self.dofs)
+        self.n_global = V.dofmap.index_map.size_global * V.dofmap.index_map_bs
+        self.mine = np.zeros(slave.n, dtype=bool)
+        self.mine[slave._mine] = True
+        self._skip = None
+        self.augmentations = 0
+        self.state = None
+
+    # -- kinematics ---------------------------------------------------------------------
+    def update(self, u) -> None:
+        with self.timings("contact"):
+            xs = self.slave.X + self.slave.displacement(u)
+            xm = self.master.X + self.master.displacement(u)
+            self.state = self._evaluate(xs, xm)
+
+    def _evaluate(self, xs, xm) -> dict:
+        s, m = self.slave, self.master
+        pairs = candidate_pairs(xs, s.seg, xm, m.seg, self.radius)
+        curve = Polyline(xm, m.seg)
+        if self.pair.method == "mortar":
+            gap, area, _, _ = mortar.weighted_gaps(xs, s.seg, xm, m.seg, curve, pairs,
+                                                   self.pair.n_gauss)
+        else:
+            gap, area = nts.node_gaps(xs, s.seg, xm, m.seg, curve, pairs)
+        g, A = nodal_sum(gap, s.n), nodal_sum(area, s.n)
+        p, active = self.enforcement.pressure(g, A)
+        return dict(xs=xs, xm=xm, gap=gap, area=area, g=g, A=A, p=p, active=active)
+
+    # -- residual and tangent -------------------------------------------------------------
+    def _G(self):
+        st = self.state
+        if "G" not in st:
+            st["G"] = assembly.gradient_matrix(st["gap"], self.slave.n, self.n_coords)
+        return st["G"]
+
+    def add_residual(self, b, bc_dofs) -> None:
+        st = self.state
+        f = -(self._G().T @ (st["p"] * self.mine))
+        assembly.add_to_vector(b, self.dofs, f)
+
+    def add_jacobian(self, A, bc_dofs) -> None:
+        st = self.state
+        n, nc = self.slave.n, self.n_coords
+        eps = self.enforcement.epsilon
+        act = (st["active"] & self.mine).astype(float)
+        Asafe = np.where(st["A"] > 0, st["A"], 1.0)
+        G = self._G()
+        GA = assembly.gradient_matrix(st["area"], n, nc)
+        K = (G.T @ sp.diags(act * eps / Asafe) @ G
+             - G.T @ sp.diags(act * eps * st["g"] / Asafe**2) @ GA
+             - assembly.hessian_sum(st["gap"], st["p"] * self.mine, n, nc))
+        assembly.add_to_matrix(A, K, self.dofs, self._skip_dofs(bc_dofs), self.n_global)
+
+    def _skip_dofs(self, bc_dofs) -> np.ndarray:
+        if self._skip is None:
+            local = np.asarray(bc_dofs)
+            g = self._l2g[local] if len(local) else np.zeros(0, dtype=np.int64)
+            self._skip = np.unique(np.concatenate(self.comm.allgather(g)))
+        return self._skip
+
+    # -- step logic -------------------------------------------------------------------
+    def newton_ok(self) -> bool:
+        return True
+
+    def augment(self) -> bool:
+        st = self.state
+        again = self.enforcement.augment(st["g"], st["A"])
+        if again:
+            self.augmentations += 1
+        return again
+
+    def begin_step(self) -> None:
+        self.augmentations = 0
+
+    def accept_step(self) -> None:
+        self.enforcement.accept()
+
+    def reject_step(self) -> None:
+        self.enforcement.reject()
+
+    # -- outputs ------------------------------------------------------------------------
+    def interface(self) -> dict[str, np.ndarray]:
+        st = self.state
+        xs = st["xs"]
+        A = st["A"]
+        gap = np.where(A > 0, st["g"] / np.where(A > 0, A, 1.0), np.nan)
+        return dict(s=self.slave.arc_length(xs), x=xs[:, 0], y=xs[:, 1], gap=gap,
+                    pressure=st["p"], active=(st["p"] > 0).astype(int))
+
+    def record(self) -> dict:
+        st = self.state
+        f = -(self._G().T @ st["p"])[: 2 * self.slave.n].reshape(-1, 2).sum(axis=0)
+        on = st["p"] > 0
+        return {self.pair.name: {
+            "normal_force": float(np.sum(st["p"] * st["A"])),
+            "force_on_slave": [float(f[0]), float(f[1])],
+            "max_pressure": float(st["p"].max(initial=0.0)),
+            "active_nodes": int(on.sum()),
+            "active_length": float(st["A"][on].sum()),
+            "kkt_residual": self.enforcement.kkt_residual(st["g"], st["A"]),
+            "augmentations": self.augmentations,
+            "epsilon": self.enforcement.epsilon,
+        }}
+
+    def write_interface(self, out: Path, step: int) -> None:
+        d = self.interface()
+        cols = ("s", "x", "y", "gap", "pressure", "active")
+        lines = [",".join(cols)]
+        for row in zip(*(d[c] for c in cols)):
+            lines.append(",".join(f"{v:.12g}" if isinstance(v, float) else str(v) for v in row))
+        write_atomic(out / "interface" / f"{self.pair.name}_{step:04d}.csv", "\n".join(lines) + "\n")
+
+    def plot(self, out: Path, steps: list[dict]) -> None:
+        if self.state is None:
+            return
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+        d = self.interface()
+        fig, ax = plt.subplots(figsize=(6, 3.5))
+        order = np.argsort(d["x"])
+        ax.plot(d["x"][order], d["pressure"][order], "o-", ms=3)
+        ax.set_xlabel("x (current configuration)")
+        ax.set_ylabel("contact pressure")
+        ax.set_title(f"{self.pair.name}: pressure at the last converged step")
+        ax.grid(alpha=0.3)
+        fig.tight_layout()
+        (out / "interface").mkdir(parents=True, exist_ok=True)
+        fig.savefig(out / "interface" / f"{self.pair.name}_pressure.png", dpi=120)
+        plt.close(fig)
+
+
+def build_contact(scene: Scene, dom, bulk, timings):
+    """One hook per contact pair, and the matrix with their couplings preallocated."""
+    for i, c in enumerate(scene.contacts):
+        if c.friction.law != "none":
+            raise SceneError(f"contacts[{i}].friction: Coulomb friction is not implemented yet")
+        if c.smoothing != "none":
+            raise SceneError(f"contacts[{i}].smoothing = {c.smoothing!r}: only 'none' is "
+                             "implemented yet")
+    V = bulk.V
+    l2g = dx.local_to_global_dofs(V)
+    hooks, blocks = [], []
+    for c in scene.contacts:
+        slave = build_surface(dom, c.slave, f"{c.name}:slave")
+        master = build_surface(dom, c.master, f"{c.name}:master")
+        E = _slave_modulus(scene, dom, slave)
+        hook = PairHook(c, slave, master, E, V, timings)
+        hook._l2g = l2g
+        blocks.extend(_coupling_blocks(hook))
+        hooks.append(hook)
+    with timings("contact"):
+        A = assembly.create_matrix(bulk.jacobian, blocks, V)
+    return hooks, A
+
+
+def _slave_modulus(scene: Scene, dom, slave: Surface) -> float:
+    """Young's modulus of the body the slave surface belongs to (for the default ε)."""
+    tag = slave.body_tag
+    return next(b.material.E for b in scene.bodies if dom.cell_groups[b.group] == tag)
+
+
+def _coupling_blocks(hook: PairHook) -> list[np.ndarray]:
+    """Per slave node: the node blocks its weighted gap can depend on (its neighbours and the
+    stencils of the master candidates of its segments, found with a generous radius)."""
+    s, m = hook.slave, hook.master
+    ps, pm = candidate_pairs(s.X, s.seg, m.X, m.seg, 3.0 * hook.radius)
+    curve = Polyline(m.X, m.seg)
+    stencil = curve.stencil(pm) if len(pm) else np.zeros((0, 4), dtype=np.int64)
+    per_node: dict[int, set[int]] = {}
+    for (a, b) in s.seg:
+        for j in (a, b):
+            per_node.setdefault(int(j), set()).update((int(a), int(b)))
+    for k, seg_i in enumerate(ps):
+        a, b = s.seg[seg_i]
+        for j in (a, b):
+            per_node[int(j)].update(int(i) + s.n for i in stencil[k])
+    bs = 2
+    node_block = np.concatenate([s.dofs[:, 0], m.dofs[:, 0]]) // bs
+    out = []
+    for nodes in per_node.values():
+        out.append(np.unique(node_block[np.fromiter(nodes, dtype=np.int64)]))
+    return out

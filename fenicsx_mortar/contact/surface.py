@@ -1,0 +1,147 @@
+"""Contact surfaces: the oriented chain(s) of boundary facets of named curve groups.
+
+Surfaces are 1D and small, so every rank holds the whole surface (gathered once): reference
+coordinates, global dof numbers, and segments oriented so that n = e₃ × t points out of the
+body (DESIGN.md §3). Current coordinates are gathered again at every Newton iterate.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from mpi4py import MPI
+
+from .. import _dolfinx as dx
+from ..meshing import Domain
+from ..scene import SceneError
+
+
+@dataclass
+class Surface:
+    name: str
+    X: np.ndarray          # (n, 2) reference coordinates, nodes ordered along the chains
+    dofs: np.ndarray       # (n, 2) global dof numbers of (u_x, u_y)
+    seg: np.ndarray        # (n_seg, 2) node indices; e₃ × (x_b − x_a) points outward
+    seg_owner: np.ndarray  # (n_seg,) rank owning the facet (computes its contributions)
+    body_tag: int          # cell tag of the body the surface bounds
+    _mine: np.ndarray      # surface indices of the nodes whose dofs this rank owns
+    _mine_local: np.ndarray  # their local (unrolled) dof indices, (k, 2)
+    comm: MPI.Comm
+
+    @property
+    def n(self) -> int:
+        return len(self.X)
+
+    def displacement(self, u) -> np.ndarray:
+        """(n, 2) current nodal displacement, gathered from the owning ranks."""
+        vals = u.x.array[self._mine_local]
+        if self.comm.size == 1:
+            out = np.empty((self.n, 2))
+            out[self._mine] = vals
+            return out
+        parts = self.comm.allgather((self._mine, vals))
+        out = np.empty((self.n, 2))
+        for idx, v in parts:
+            out[idx] = v
+        return out
+
+    def arc_length(self, x: np.ndarray) -> np.ndarray:
+        """Arc length along the chain at each node (restarting at 0 on each chain)."""
+        s = np.zeros(self.n)
+        for a, b in self.seg:  # nodes are ordered along the chains, so b follows a
+            s[b] = s[a] + np.hypot(*(x[b] - x[a]))
+        return s
+
+
+def build_surface(dom: Domain, groups: str | list[str], name: str) -> Surface:
+    """Gather the facets of ``groups`` from all ranks and order them into oriented chains."""
+    msh = dom.mesh
+    comm = msh.comm
+    V = dx.vector_space(msh)
+    facets = dom.facets(groups)
+    n_owned_facets = msh.topology.index_map(1).size_local
+    facets = facets[facets < n_owned_facets]
+    f2v = dx.facet_vertices(msh)
+    f2c = dx.facet_cells(msh)
+    v2g = dx.vertex_to_geometry_node(msh)
+    x = msh.geometry.x[:, :2]
+    cells = msh.geometry.dofmap
+    l2g = dx.local_to_global_dofs(V)
+    n_owned_dofs = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
+
+    cell_tag = np.full(len(cells), -1, dtype=np.int64)
+    cell_tag[dom.cell_tags.indices] = dom.cell_tags.values
+    rows, tags = [], []
+    for f in facets:
+        v = f2v.links(f)
+        p = x[v2g[v]]
+        c = f2c.links(f)[0]
+        centroid = x[cells.links(c)].mean(axis=0)
+        t = p[1] - p[0]
+        if np.dot(0.5 * (p[0] + p[1]) - centroid, [-t[1], t[0]]) < 0:
+            v, p = v[::-1], p[::-1]  # orient so that e₃ × t points out of the body
+        d = dx.vertex_dofs_all(V, v)
+        rows.append((l2g[d], p, d, d[:, 0] < n_owned_dofs))
+        tags.append(int(cell_tag[c]))
+    gathered = comm.allgather(rows)
+    tags = [t for part in comm.allgather(tags) for t in part]
+    if len(set(tags)) != 1:
+        raise SceneError(f"contact surface {name} ({groups}) must bound exactly one body; "
+                         f"its facets touch cells of {len(set(tags))} bodies")
+
+    key_index: dict[int, int] = {}
+    X, dofs, seg, owner = [], [], [], []
+    for r, part in enumerate(gathered):
+        for gd, p, _, _ in part:
+            ends = []
+            for k in range(2):
+                key = int(gd[k, 0])
+                if key not in key_index:
+                    key_index[key] = len(X)
+                    X.append(p[k])
+                    dofs.append(gd[k])
+                ends.append(key_index[key])
+            seg.append(ends)
+            owner.append(r)
+    X, dofs = np.array(X, dtype=float), np.array(dofs, dtype=np.int64)
+    seg, owner = np.array(seg, dtype=np.int64).reshape(-1, 2), np.array(owner)
+    order, seg_order = _chain_order(seg, len(X))
+    renum = np.empty(len(X), dtype=np.int64)
+    renum[order] = np.arange(len(X))
+    X, dofs = X[order], dofs[order]
+    seg, owner = renum[seg[seg_order]], owner[seg_order]
+
+    mine, mine_local = [], []
+    for gd, _, d, own in rows:
+        for k in range(2):
+            if own[k]:
+                mine.append(renum[key_index[int(gd[k, 0])]])
+                mine_local.append(d[k])
+    mine = np.array(mine, dtype=np.int64)
+    mine_local = np.array(mine_local, dtype=np.int32).reshape(-1, 2)
+    mine, first = np.unique(mine, return_index=True)
+    return Surface(name, X, dofs, seg, owner, tags[0], mine, mine_local[first], comm)
+
+
+
+def _chain_order(seg: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Node and segment orders that walk each chain from its start (open chains first)."""
+    nxt = {int(a): i for i, (a, _) in enumerate(seg)}
+    has_pred = np.zeros(n, dtype=bool)
+    has_pred[seg[:, 1]] = True
+    starts = [int(a) for a, _ in seg if not has_pred[a]]
+    visited = np.zeros(n, dtype=bool)
+    nodes, segs = [], []
+    for s in starts + [int(a) for a, _ in seg]:  # closed chains start anywhere
+        if visited[s]:
+            continue
+        node = s
+        while not visited[node]:
+            visited[node] = True
+            nodes.append(node)
+            i = nxt.get(node)
+            if i is None:
+                break
+            segs.append(i)
+            node = int(seg[i, 1])
+    return np.array(nodes, dtype=np.int64), np.array(segs, dtype=np.int64)
