@@ -163,7 +163,7 @@ class SolverSettings:
     atol: float = 1e-9
     rtol: float = 1e-8
     max_iterations: int = 25
-    line_search: Literal["basic", "bt", "l2", "cp"] = "bt"
+    line_search: Literal["basic", "bt", "l2", "cp"] = "l2"
     linear_solver: Literal["mumps", "superlu_dist", "gmres-hypre"] = "mumps"
     petsc: dict[str, bool | int | float | str] = field(default_factory=dict)
 

@@ -72,7 +72,8 @@ def _runs(p: np.ndarray):
     brk = np.flatnonzero(np.diff(p) != 1) + 1
     starts = np.concatenate([[0], brk])
     ends = np.concatenate([brk, [p.shape[0]]])
-    return [(slice(a, b), slice(p[a], p[a] + b - a)) for a, b in zip(starts.tolist(), ends.tolist())]
+    return [(slice(a, b), slice(p[a], p[a] + b - a))
+            for a, b in zip(starts.tolist(), ends.tolist())]
 
 
 def _eh(h, p, k: int):
@@ -117,7 +118,9 @@ class Jet2:
         self._m = m
         self.idx = np.arange(m)
         self._g = np.moveaxis(grad, -1, 0)
-        self._h = None if hess is None else np.moveaxis(np.asarray(hess, dtype=float), (-2, -1), (0, 1))
+        if hess is not None:
+            hess = np.moveaxis(np.asarray(hess, dtype=float), (-2, -1), (0, 1))
+        self._h = hess
 
     @classmethod
     def _raw(cls, val, g, h, idx, m) -> "Jet2":
@@ -126,9 +129,9 @@ class Jet2:
         val = np.asarray(val, dtype=float)
         k = idx.shape[0]
         if g.shape[1:] != val.shape:
-            g = np.broadcast_to(g, (k,) + val.shape)
+            g = np.broadcast_to(_lift(g, 1, val.ndim), (k,) + val.shape)
         if h is not None and h.shape[2:] != val.shape:
-            h = np.broadcast_to(h, (k, k) + val.shape)
+            h = np.broadcast_to(_lift(h, 2, val.ndim), (k, k) + val.shape)
         self.val, self._g, self._h, self.idx, self._m = val, g, h, idx, m
         return self
 
@@ -228,7 +231,7 @@ class Jet2:
         if isinstance(o, Jet2):
             return self._lincomb(o, 1.0)
         val = self.val + o
-        return Jet2._raw(val, _lift(self._g, 1, val.ndim), _lift_h(self._h, val.ndim), self.idx, self._m)
+        return Jet2._raw(val, self._g, self._h, self.idx, self._m)
 
     __radd__ = __add__
 
@@ -236,7 +239,7 @@ class Jet2:
         if isinstance(o, Jet2):
             return self._lincomb(o, -1.0)
         val = self.val - o
-        return Jet2._raw(val, _lift(self._g, 1, val.ndim), _lift_h(self._h, val.ndim), self.idx, self._m)
+        return Jet2._raw(val, self._g, self._h, self.idx, self._m)
 
     def __rsub__(self, o) -> "Jet2":
         val = o - self.val
@@ -295,10 +298,6 @@ class Jet2:
         r = 1.0 / self.val
         r2 = r * r
         return self._chain(r, -r2, 2.0 * r2 * r)
-
-
-def _lift_h(h, nd: int):
-    return None if h is None else _lift(h, 2, nd)
 
 
 Scalar = Union[Jet2, np.ndarray, float]
@@ -423,8 +422,3 @@ def norm(u: Vec2) -> Scalar:
 def unit(u: Vec2) -> Vec2:
     r = reciprocal(norm(u))
     return (u[0] * r, u[1] * r)
-
-
-def index(u: Vec2, idx) -> Vec2:
-    """Index the batch axes of both components."""
-    return (u[0][idx], u[1][idx])

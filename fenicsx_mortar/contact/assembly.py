@@ -20,6 +20,8 @@ from .kernel import NodalContributions, nodal_sum
 
 def gradient_matrix(c: NodalContributions, n_slave: int, n_coords: int) -> sp.csr_matrix:
     """Rows ∇q_j (q = g̃ or A) over the stacked coordinates, summed over contributions."""
+    if c.size == 0:
+        return sp.csr_matrix((n_slave, n_coords))
     gidx = c.global_indices(n_slave)
     rows = np.repeat(c.node, gidx.shape[1])
     return sp.csr_matrix((c.grad.ravel(), (rows, gidx.ravel())), shape=(n_slave, n_coords))
@@ -42,9 +44,10 @@ def hessian_sum(c: NodalContributions, weight: np.ndarray, n_slave: int,
 
 def contact_terms(gap: NodalContributions, area: NodalContributions, enforcement,
                   n_slave: int, n_coords: int, weight: np.ndarray | None = None,
-                  tangent: bool = True):
+                  tangent: bool = True, touching: np.ndarray | None = None):
     """(g̃, A, p, active, R, K) over the stacked coordinates; ``weight`` (0/1 per slave
-    node) selects the nodes whose terms this rank inserts."""
+    node) selects the nodes whose terms this rank inserts; ``touching`` marks extra nodes
+    that get the penalty stiffness in K (see PairHook.add_jacobian)."""
     g, A = nodal_sum(gap, n_slave), nodal_sum(area, n_slave)
     p, active = enforcement.pressure(g, A)
     w = np.ones(n_slave) if weight is None else weight
@@ -53,7 +56,7 @@ def contact_terms(gap: NodalContributions, area: NodalContributions, enforcement
     K = None
     if tangent:
         eps = enforcement.epsilon
-        act = active * w
+        act = (active if touching is None else active | touching) * w
         As = np.where(A > 0, A, 1.0)
         GA = gradient_matrix(area, n_slave, n_coords)
         K = (G.T @ sp.diags(act * eps / As) @ G

@@ -27,7 +27,8 @@ from .kernel import chain_links
 
 
 class MasterCurve(abc.ABC):
-    """Geometry of the master surface: a map (segment i, ξ∈[0,1]) -> point, built from the chain nodes."""
+    """Geometry of the master surface: a map (segment i, ξ∈[0,1]) -> point, built from the
+    chain nodes."""
 
     #: number of master nodes the curve on one segment depends on
     stencil_size: int

@@ -26,10 +26,10 @@ class NodalContributions:
     node `node`, depending on local nodes `slave_nodes`/`master_nodes`."""
 
     node: np.ndarray          # (K,) slave node index (into the slave chain)
-    slave_nodes: np.ndarray   # (K, S) slave node indices of the local variables (first 2S local coords)
+    slave_nodes: np.ndarray   # (K, S) slave node indices of the local variables (first 2S coords)
     master_nodes: np.ndarray  # (K, L) master node indices (next 2L local coords)
     value: np.ndarray         # (K,)
-    grad: np.ndarray          # (K, m)   m = 2*(S+L), ordering [xs0, ys0, xs1, ys1, ..., xm0, ym0, ...]
+    grad: np.ndarray          # (K, m)   m = 2*(S+L), order [xs0, ys0, xs1, ys1, .., xm0, ym0, ..]
     hess: np.ndarray          # (K, m, m)
 
     @property

@@ -10,6 +10,8 @@ For a candidate pair (slave segment s = [x_a, x_b], master segment m = [x_c, x_d
    Integration domain [ζ_lo, ζ_hi] = [0, 1] ∩ [min(ζ_c, ζ_d), max(ζ_c, ζ_d)]; empty → the
    pair is dropped. Adjacent master segments share t̄ at their common node, so their
    domains tile the slave segment without gap or overlap.
+   This assumes the nodal perpendiculars do not cross between master and slave (gap small
+   against the master's radius of curvature), as in any contact configuration.
    Pairs whose slave and master do not face each other, (x_b − x_a)·t̄ ≥ 0 at either master
    node (outward normals less than 90° apart), are dropped too: they are no contact
    configuration (e.g. the back side of a closed master) and would divide by ~0.
@@ -29,7 +31,9 @@ For a candidate pair (slave segment s = [x_a, x_b], master segment m = [x_c, x_d
 
 All of g̃_j and A_j is computed with :class:`~.ad.Jet2` over the pair's local coordinates
 [x_a, y_a, x_b, y_b, then the L stencil nodes of the master segment], vectorized over
-pairs and Gauss points (batch (n_pairs, n_gauss)).
+pairs and Gauss points (batch (n_gauss, n_pairs), in blocks of pairs). The Gauss-point
+integrand is differentiated with ζ_lo, ζ_hi as extra independent variables and their
+dependence on the coordinates is applied afterwards by the chain rule (exact, cheaper).
 """
 from __future__ import annotations
 
@@ -57,9 +61,10 @@ def _interval(xa: Vec2, xb: Vec2, P: Sequence[Vec2], curve: MasterCurve, pm: np.
     den_c = ad.dot(e, tc)
     den_d = ad.dot(e, td)
     facing = (ad.value(den_c) < 0.0) & (ad.value(den_d) < 0.0)
-    # keep the discarded entries finite; they are dropped by the caller
-    den_c = ad.where(facing, den_c, -1.0)
-    den_d = ad.where(facing, den_d, -1.0)
+    if not np.all(facing):
+        # keep the discarded entries finite; they are dropped by the caller
+        den_c = ad.where(facing, den_c, -1.0)
+        den_d = ad.where(facing, den_d, -1.0)
     zc = ad.dot(ad.sub(xc, xa), tc) * ad.reciprocal(den_c)
     zd = ad.dot(ad.sub(xd, xa), td) * ad.reciprocal(den_d)
     zc_v, zd_v = ad.value(zc), ad.value(zd)
@@ -70,23 +75,25 @@ def _interval(xa: Vec2, xb: Vec2, P: Sequence[Vec2], curve: MasterCurve, pm: np.
     return lo, hi, facing
 
 
-def _pair_points(slave_x, slave_seg, curve, ps, pm):
+def _pair_points(slave_x, slave_seg, curve, master_x, ps, pm):
     seg = np.asarray(slave_seg, dtype=np.int64).reshape(-1, 2)[ps]
     xs = np.asarray(slave_x, dtype=float)
-    return seg[:, 0], seg[:, 1], xs[seg[:, 0]], xs[seg[:, 1]], curve.local_points(pm)
+    return seg[:, 0], seg[:, 1], xs[seg[:, 0]], xs[seg[:, 1]], curve.local_points(pm, master_x)
 
 
 def segmentation(slave_x: np.ndarray, slave_seg: np.ndarray, curve: MasterCurve,
-                 pairs: Tuple[np.ndarray, np.ndarray]) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+                 pairs: Tuple[np.ndarray, np.ndarray], master_x: np.ndarray | None = None
+                 ) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Integration intervals of the candidate pairs (values only).
 
     Returns ``(zeta_lo, zeta_hi, keep)``, each (n_pairs,): the interval [ζ_lo, ζ_hi] ⊂ [0, 1]
     of the slave segment served by the master segment and whether the pair contributes
-    (faces the master and ζ_hi > ζ_lo).
+    (faces the master and ζ_hi > ζ_lo). Master coordinates from ``master_x`` (default: the
+    curve's own).
     """
     ps = np.asarray(pairs[0], dtype=np.int64)
     pm = np.asarray(pairs[1], dtype=np.int64)
-    _, _, xa, xb, P = _pair_points(slave_x, slave_seg, curve, ps, pm)
+    _, _, xa, xb, P = _pair_points(slave_x, slave_seg, curve, master_x, ps, pm)
     lo, hi, facing = _interval((xa[:, 0], xa[:, 1]), (xb[:, 0], xb[:, 1]),
                                curve.split_points(P), curve, pm)
     lo, hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
@@ -143,7 +150,8 @@ def weighted_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarr
                   ) -> Tuple[NodalContributions, NodalContributions, Triplets, Triplets]:
     """Mortar weighted gaps g̃_j and nodal areas A_j with exact derivatives, and D, M.
 
-    ``curve`` must be built on (master_x, master_seg); ``pairs = (slave_segments,
+    ``curve`` must be built on the chain ``master_seg`` (its topology and stencils are
+    used; the coordinates come from ``master_x``); ``pairs = (slave_segments,
     master_segments)`` are candidates (e.g. from :func:`.search.candidate_pairs`).
     Returns ``(gap, area, D, M)``: per-pair contributions for slave nodes a and b (local
     coordinates [x_a, y_a, x_b, y_b, stencil of the master segment], m = 2(2 + L)), and D
@@ -162,7 +170,7 @@ def weighted_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarr
     pm = np.asarray(pairs[1], dtype=np.int64)
 
     # cheap float pass first: only contributing pairs get the (…, m, m) jet work
-    _, _, keep = segmentation(slave_x, slave_seg, curve, (ps, pm))
+    _, _, keep = segmentation(slave_x, slave_seg, curve, (ps, pm), master_x)
     ps, pm = ps[keep], pm[keep]
     K = ps.shape[0]
     empty_coo = Triplets(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))
@@ -170,7 +178,7 @@ def weighted_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarr
         e = NodalContributions.empty(2, L)
         return e, NodalContributions.empty(2, L), empty_coo, empty_coo
 
-    na, nb, xa0, xb0, P0 = _pair_points(slave_x, slave_seg, curve, ps, pm)
+    na, nb, xa0, xb0, P0 = _pair_points(slave_x, slave_seg, curve, master_x, ps, pm)
     stencil = curve.stencil(pm)
     X = np.concatenate([xa0, xb0, P0.reshape(K, 2 * L)], axis=1)
 

@@ -5,7 +5,8 @@ For each slave node j:
 * projection onto the master curve: among the candidate master segments, those with the
   closest-point parameter ξ̄ ∈ [0, 1] qualify and the one with the smallest |g| wins;
   a node that projects onto no segment (beyond the master's ends, or into the blind
-  wedge outside a convex master corner) gets no contribution;
+  wedge outside a convex master corner) gets no contribution; no facing test is made
+  (the smallest |g| already prefers the near side of a closed master);
 * point gap g_j = (x_j − x_m(ξ̄))·n_m(ξ̄);
 * nodal area A_j = ½(|x_j − x_{j−1}| + |x_{j+1} − x_j|) (adjacent slave segments, current
   configuration); at a chain end the missing neighbour contributes 0;
@@ -30,9 +31,9 @@ from .curves import MasterCurve
 from .kernel import NodalContributions, chain_links
 
 
-def _closest_segments(slave_x, nodes, segs, curve):
+def _closest_segments(slave_x, master_x, nodes, segs, curve):
     """Per node, the qualifying candidate segment with the smallest |g| (values only)."""
-    P = curve.split_points(curve.local_points(segs))
+    P = curve.split_points(curve.local_points(segs, master_x))
     xj = (slave_x[nodes, 0], slave_x[nodes, 1])
     xi = curve.project(segs, xj, P)
     x_m, a_m = curve.evaluate(segs, xi, P)
@@ -48,12 +49,14 @@ def _closest_segments(slave_x, nodes, segs, curve):
 
 def node_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarray,
               master_seg: np.ndarray, curve: MasterCurve,
-              pairs: Tuple[np.ndarray, np.ndarray]) -> Tuple[NodalContributions, NodalContributions]:
+              pairs: Tuple[np.ndarray, np.ndarray]
+              ) -> Tuple[NodalContributions, NodalContributions]:
     """NTS weighted gaps g̃_j = A_j g_j and nodal areas A_j with exact derivatives.
 
     ``pairs = (slave_segments, master_segments)`` are segment candidates (e.g. from
     :func:`.search.candidate_pairs`); the nodes of a slave segment inherit its master
-    candidates. ``curve`` must be built on (master_x, master_seg). Returns ``(gap, area)``
+    candidates. ``curve`` must be built on the chain ``master_seg``; coordinates come from
+    ``master_x``. Returns ``(gap, area)``
     with one contribution per slave node in contact range, S = 3 (see module docstring).
     """
     slave_x = np.asarray(slave_x, dtype=float)
@@ -67,7 +70,7 @@ def node_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarray,
     segs = np.concatenate([pm, pm])
     key = np.unique(nodes * n_ms + segs)
     nodes, segs = key // n_ms, key % n_ms
-    nodes, segs = _closest_segments(slave_x, nodes, segs, curve)
+    nodes, segs = _closest_segments(slave_x, master_x, nodes, segs, curve)
     K = nodes.shape[0]
     if K == 0:
         return NodalContributions.empty(3, L), NodalContributions.empty(3, L)
@@ -81,7 +84,7 @@ def node_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarray,
     stencil = curve.stencil(segs)
 
     X = np.concatenate([slave_x[slave_nodes].reshape(K, 6),
-                        curve.local_points(segs).reshape(K, 2 * L)], axis=1)
+                        curve.local_points(segs, master_x).reshape(K, 2 * L)], axis=1)
     v = Jet2.variables(X)
     xp, xj, xq = (v[0], v[1]), (v[2], v[3]), (v[4], v[5])
     P = [(v[6 + 2 * i], v[7 + 2 * i]) for i in range(L)]
