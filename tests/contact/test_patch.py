@@ -1,0 +1,24 @@
+"""Contact patch test (B1): mortar + ALM transmits the uniform pressure exactly across the
+non-matching interface; node-to-segment does not (DESIGN.md §9, BENCHMARKS.md B1)."""
+import importlib.util
+
+import pytest
+
+from conftest import ROOT
+
+spec = importlib.util.spec_from_file_location("demo_patch_test", ROOT / "demos/demo_patch_test.py")
+demo = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(demo)
+
+
+@pytest.mark.parametrize("cell", ["quadrilateral", "triangle"])
+def test_mortar_passes_patch_test(cell):
+    stress_error, pressure_error, iterations, augmentations = demo.patch_errors("mortar", cell)
+    assert stress_error <= 1e-8       # σ_yy = −1 in every cell of both blocks
+    assert pressure_error <= 1e-8     # p = 1 at every active slave node
+
+
+@pytest.mark.parametrize("cell", ["quadrilateral", "triangle"])
+def test_nts_fails_patch_test(cell):
+    stress_error, pressure_error, _, _ = demo.patch_errors("nts", cell)
+    assert stress_error > 1e-3
