@@ -1,0 +1,250 @@
+"""Mortar segment-to-segment kernel (fenicsx_mortar.contact.mortar): exact derivatives
+(Taylor tests), the contact patch test at kernel level, exact tiling of the segmentation,
+and vectorized cost."""
+import time
+
+import numpy as np
+import pytest
+
+from fenicsx_mortar.contact import mortar
+from fenicsx_mortar.contact.curves import Polyline
+from fenicsx_mortar.contact.kernel import nodal_sum
+from fenicsx_mortar.contact.search import candidate_pairs
+
+
+def _chain(points, closed=False):
+    n = len(points)
+    seg = np.stack([np.arange(n - 1), np.arange(1, n)], axis=1)
+    if closed:
+        seg = np.vstack([seg, [[n - 1, 0]]])
+    return np.asarray(points, dtype=float), seg
+
+
+def _jittered(a, b, n, rng, amount=0.3):
+    """n nodes from a to b (either direction), spacing randomly non-uniform."""
+    t = np.linspace(0.0, 1.0, n)
+    t[1:-1] += rng.uniform(-amount, amount, n - 2) / (n - 1)
+    return a + (b - a) * t
+
+
+def curved_open(seed=5):
+    """Curved, non-matching, partly overlapping chains: master (lower body's top, +x) on
+    x ∈ [0, 3] with convex and concave parts; slave (upper body's bottom, −x) on
+    x ∈ [3.6, 0.7], i.e. beyond the master's right end; gaps of both signs."""
+    rng = np.random.default_rng(seed)
+    xm_ = _jittered(0.0, 3.0, 12, rng)
+    xs_ = _jittered(3.6, 0.7, 15, rng)
+    xm, sm = _chain(np.c_[xm_, 0.15 * np.sin(1.7 * xm_)])
+    xs, ss = _chain(np.c_[xs_, 0.15 * np.sin(1.7 * xs_) + 0.01 + 0.03 * np.cos(2.3 * xs_)])
+    return xs, ss, xm, sm
+
+
+def closed_master(seed=6):
+    """Closed master (unit disk, clockwise so the normal points outward) under an open
+    slave arc facing down; the disk's far side must be ignored (not facing)."""
+    rng = np.random.default_rng(seed)
+    phi = np.sort(rng.uniform(0, 2 * np.pi, 24))[::-1]            # clockwise
+    xm, sm = _chain(np.c_[np.cos(phi), np.sin(phi)], closed=True)
+    xs_ = _jittered(0.8, -0.7, 11, rng)
+    xs, ss = _chain(np.c_[xs_, 1.0 - 0.2 * xs_**2 + 0.02 * np.sin(3 * xs_)])
+    return xs, ss, xm, sm
+
+
+def _mortar(xs, ss, xm, sm, n_gauss=2):
+    curve = Polyline(xm, sm)
+    pairs = candidate_pairs(xs, ss, xm, sm, 0.3)
+    return mortar.weighted_gaps(xs, ss, xm, sm, curve, pairs, n_gauss)
+
+
+def _assemble(contrib, ns, nm, weights):
+    """G = Σ_k w[node_k] value_k with its global gradient and Hessian over
+    [slave coords, master coords]."""
+    n = 2 * (ns + nm)
+    w = weights[contrib.node]
+    dofs = contrib.global_indices(ns)
+    g = np.zeros(n)
+    np.add.at(g, dofs, w[:, None] * contrib.grad)
+    H = np.zeros((n, n))
+    np.add.at(H, (dofs[:, :, None], dofs[:, None, :]), w[:, None, None] * contrib.hess)
+    return float(w @ contrib.value), g, H
+
+
+def _rates(h, r):
+    return np.log(r[:-1] / r[1:]) / np.log(h[:-1] / h[1:])
+
+
+def taylor_check(kernel, xs, ss, xm, sm, seed=0):
+    """Second-order Taylor remainders of G = Σ w_j q_j for each returned quantity q."""
+    rng = np.random.default_rng(seed)
+    ns, nm = len(xs), len(xm)
+    X0 = np.concatenate([xs.ravel(), xm.ravel()])
+    dX = rng.uniform(-1.0, 1.0, X0.shape) * 0.01
+    weights = rng.uniform(0.5, 1.5, ns)
+
+    def evaluate(X):
+        out = kernel(X[:2 * ns].reshape(ns, 2), ss, X[2 * ns:].reshape(nm, 2), sm)
+        return [_assemble(c, ns, nm, weights) for c in out], [c.size for c in out]
+
+    base, sizes = evaluate(X0)
+    hs = 10.0 ** -np.arange(2.0, 5.5, 0.5)
+    for q, (G0, g0, H0) in enumerate(base):
+        r0, r1 = [], []
+        for h in hs:
+            (out, new_sizes) = evaluate(X0 + h * dX)
+            assert new_sizes == sizes                  # no switch of pairs in the h range
+            G, g, _ = out[q]
+            r0.append(abs(G - G0 - h * g0 @ dX))
+            r1.append(np.linalg.norm(g - g0 - h * H0 @ dX))
+        r0, r1 = np.array(r0), np.array(r1)
+        assert np.all((_rates(hs, r0) > 1.8) & (_rates(hs, r0) < 2.2)), (q, r0)
+        assert np.all((_rates(hs, r1) > 1.8) & (_rates(hs, r1) < 2.2)), (q, r1)
+    return sizes
+
+
+@pytest.mark.parametrize("config", [curved_open, closed_master])
+@pytest.mark.parametrize("n_gauss", [2, 3])
+def test_taylor_weighted_gap_and_area(config, n_gauss):
+    xs, ss, xm, sm = config()
+
+    def kernel(xs, ss, xm, sm):
+        return _mortar(xs, ss, xm, sm, n_gauss)[:2]
+    sizes = taylor_check(kernel, xs, ss, xm, sm)
+    assert sizes[0] > 10
+
+
+def test_open_end_stencil_derivative_slots():
+    # at a master chain end the stencil repeats the end node; its own slot must carry zero
+    # derivative (the end node's derivative sits in the real slot)
+    xs, ss, xm, sm = curved_open()
+    gap, area, _, _ = _mortar(xs, ss, xm, sm)
+    last = len(xm) - 1
+    rows = gap.master_nodes[:, 3] == gap.master_nodes[:, 2]
+    assert np.any(rows) and np.all(gap.master_nodes[rows, 2] == last)
+    for c in (gap, area):
+        assert np.all(c.grad[rows][:, 4 + 6:4 + 8] == 0.0)
+        assert np.all(c.hess[rows][:, 4 + 6:4 + 8, :] == 0.0)
+
+
+# ---------------------------------------------------------------- flat patch test
+def flat(delta, slave_from, slave_to, seed=2):
+    """Master y = 0 on x ∈ [0, 4] (+x, 9 nodes), slave y = δ traversed −x, both spaced
+    randomly (non-matching)."""
+    rng = np.random.default_rng(seed)
+    xm_ = _jittered(0.0, 4.0, 9, rng, 0.4)
+    xs_ = _jittered(slave_from, slave_to, 12, rng, 0.4)
+    xm, sm = _chain(np.c_[xm_, np.zeros_like(xm_)])
+    xs, ss = _chain(np.c_[xs_, np.full_like(xs_, delta)])
+    return xs, ss, xm, sm
+
+
+def hat_integrals(x, seg, a, b):
+    """∫_a^b N_l dx of the piecewise linear hats of a straight horizontal chain."""
+    out = np.zeros(len(x))
+    s, w = np.polynomial.legendre.leggauss(2)
+    for c, d in seg:
+        x0, x1 = sorted((x[c, 0], x[d, 0]))
+        u0, u1 = max(x0, a), min(x1, b)
+        if u1 <= u0:
+            continue
+        q = 0.5 * (u0 + u1) + 0.5 * (u1 - u0) * s
+        t = (q - x[c, 0]) / (x[d, 0] - x[c, 0])
+        out[c] += 0.5 * (u1 - u0) * w @ (1 - t)
+        out[d] += 0.5 * (u1 - u0) * w @ t
+    return out
+
+
+OVERLAPS = [(3.3, 0.6), (4.5, 1.0), (4.6, -0.7)]   # inside, beyond one end, beyond both
+
+
+@pytest.mark.parametrize("slave_from,slave_to", OVERLAPS)
+def test_flat_gap_area_and_mortar_sums(slave_from, slave_to):
+    delta = 0.037
+    xs, ss, xm, sm = flat(delta, slave_from, slave_to)
+    gap, area, D, M = _mortar(xs, ss, xm, sm)
+    G, A = nodal_sum(gap, len(xs)), nodal_sum(area, len(xs))
+    overlap = min(slave_from, 4.0) - max(slave_to, 0.0)
+    assert np.allclose(G, delta * A, rtol=0, atol=1e-13)
+    assert abs(A.sum() - overlap) < 1e-13
+    assert abs(D.vals.sum() - overlap) < 1e-13 and abs(M.vals.sum() - overlap) < 1e-13
+    # D rows sum to the nodal areas; M columns to the master hats' integrals
+    assert np.allclose(np.bincount(D.rows, D.vals, len(xs)), A, atol=1e-14)
+    a, b = max(slave_to, 0.0), min(slave_from, 4.0)
+    assert np.allclose(np.bincount(M.cols, M.vals, len(xm)), hat_integrals(xm, sm, a, b),
+                       atol=1e-14)
+
+
+def _forces(gap, ns, nm, p):
+    """f = Σ_j p ∇g̃_j over [slave coords, master coords], as (node, 2) arrays."""
+    _, f, _ = _assemble(gap, ns, nm, np.full(ns, p))
+    return f[:2 * ns].reshape(ns, 2), f[2 * ns:].reshape(nm, 2)
+
+
+@pytest.mark.parametrize("slave_from,slave_to", OVERLAPS)
+def test_patch_test_consistent_nodal_forces(slave_from, slave_to):
+    # touching interface (the converged state of the patch test): the contact forces of a
+    # uniform pressure must be the consistent nodal loads on both sides
+    p = 1.7
+    xs, ss, xm, sm = flat(0.0, slave_from, slave_to)
+    gap, _, _, _ = _mortar(xs, ss, xm, sm)
+    fs, fm = _forces(gap, len(xs), len(xm), p)
+    a, b = max(slave_to, 0.0), min(slave_from, 4.0)
+    n_m = np.array([0.0, 1.0])                        # master normal, into the slave
+    assert np.allclose(fs, p * hat_integrals(xs, ss, a, b)[:, None] * n_m, rtol=0, atol=1e-13)
+    assert np.allclose(fm, -p * hat_integrals(xm, sm, a, b)[:, None] * n_m, rtol=0, atol=1e-13)
+    assert np.allclose(fs.sum(0) + fm.sum(0), 0.0, atol=1e-13)
+    assert abs(fs[:, 1].sum() - p * (b - a)) < 1e-13
+
+
+# ---------------------------------------------------------------- segmentation tiling
+def test_segmentation_tiles_slave_segments():
+    rng = np.random.default_rng(4)
+    xm_ = _jittered(0.0, 3.0, 25, rng)
+    xm, sm = _chain(np.c_[xm_, 0.3 * np.sin(2.0 * xm_)])          # convex and concave
+    # long slave segments, each spanning several master segments; the chain runs past
+    # the master's right end (x = 3) and stops inside its span at the left
+    xs_ = _jittered(3.4, 0.3, 6, rng, 0.2)
+    xs, ss = _chain(np.c_[xs_, 0.3 * np.sin(2.0 * xs_) + 0.05])
+    curve = Polyline(xm, sm)
+    ps = np.repeat(np.arange(len(ss)), len(sm))
+    pm = np.tile(np.arange(len(sm)), len(ss))
+    lo, hi, keep = mortar.segmentation(xs, ss, curve, (ps, pm))
+    # the shadow of the master's last node: its perpendicular (end tangent = own segment's)
+    c, d = xm[-2], xm[-1]
+    t = (d - c) / np.linalg.norm(d - c)
+    pieces = []
+    for s in range(len(ss)):
+        mine = keep & (ps == s)
+        order = np.argsort(lo[mine])
+        l, h, m = lo[mine][order], hi[mine][order], pm[mine][order]
+        pieces.append(len(l))
+        assert np.all(np.diff(m) == -1)                             # consecutive, −x order
+        assert np.allclose(l[1:], h[:-1], rtol=0, atol=1e-14)       # no gap, no overlap
+        xa, xb = xs[ss[s, 0]], xs[ss[s, 1]]
+        z_end = (d - xa) @ t / ((xb - xa) @ t)
+        covered = 1.0 - max(z_end, 0.0)                            # part under the master
+        assert abs((h - l).sum() - covered) < 1e-14
+        assert abs(h[-1] - 1.0) < 1e-15
+    assert min(pieces) >= 1 and max(pieces) >= 4
+
+
+# ---------------------------------------------------------------- cost
+def test_vectorized_cost_scales_linearly():
+    def run(N):
+        t = np.linspace(0.0, 1.0, N + 1)
+        xs, ss = _chain(np.c_[1.0 - t, 0.3 / N + 0.1 * np.sin(6.0 * (1.0 - t))])
+        u = np.linspace(0.0, 1.0, int(0.77 * N) + 1)
+        xm, sm = _chain(np.c_[u, 0.1 * np.sin(6.0 * u)])
+        best = np.inf
+        for _ in range(2):
+            t0 = time.perf_counter()
+            curve = Polyline(xm, sm)
+            pairs = candidate_pairs(xs, ss, xm, sm, 1.0 / N)
+            gap, _, _, _ = mortar.weighted_gaps(xs, ss, xm, sm, curve, pairs)
+            best = min(best, time.perf_counter() - t0)
+        assert gap.size > N
+        return best
+
+    run(500)                                          # warm-up
+    t1, t4 = run(5000), run(20000)
+    print(f"\nmortar kernel: 5000 slave segments {t1:.3f} s, 20000: {t4:.3f} s")
+    assert t4 / t1 < 8.0
