@@ -31,16 +31,29 @@ from .curves import MasterCurve
 from .kernel import NodalContributions, chain_links
 
 
-def _closest_segments(slave_x, master_x, nodes, segs, curve):
-    """Per node, the qualifying candidate segment with the smallest |g| (values only)."""
+STICKY_TOL = 1e-8
+NODE_TOL = 1e-6
+
+
+def _closest_segments(slave_x, master_x, nodes, segs, curve, previous=None):
+    """Per node, the qualifying candidate segment with the smallest |g| (values only).
+
+    With ``previous`` (segment chosen per slave node before, −1 for none) a node keeps its
+    segment while it projects within [−tol, 1 + tol] of it: at a master node the two
+    adjacent segments tie, their normals differ, and a choice that flips with round-off
+    between Newton iterations makes the residual jump (Newton then cycles)."""
     P = curve.split_points(curve.local_points(segs, master_x))
     xj = (slave_x[nodes, 0], slave_x[nodes, 1])
     xi = curve.project(segs, xj, P)
     x_m, a_m = curve.evaluate(segs, xi, P)
     g = ad.dot(ad.sub(xj, x_m), curve.normal(a_m))
     ok = (xi >= 0.0) & (xi <= 1.0)
-    nodes, segs, g = nodes[ok], segs[ok], g[ok]
-    order = np.lexsort((np.abs(g), nodes))
+    kept = np.zeros_like(ok)
+    if previous is not None:
+        kept = (previous[nodes] == segs) & (xi >= -STICKY_TOL) & (xi <= 1.0 + STICKY_TOL)
+    ok |= kept
+    nodes, segs, g, kept = nodes[ok], segs[ok], g[ok], kept[ok]
+    order = np.lexsort((np.abs(g), ~kept, nodes))
     nodes, segs = nodes[order], segs[order]
     first = np.ones(nodes.shape[0], dtype=bool)
     first[1:] = nodes[1:] != nodes[:-1]
@@ -49,7 +62,7 @@ def _closest_segments(slave_x, master_x, nodes, segs, curve):
 
 def node_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarray,
               master_seg: np.ndarray, curve: MasterCurve,
-              pairs: Tuple[np.ndarray, np.ndarray]
+              pairs: Tuple[np.ndarray, np.ndarray], previous: np.ndarray | None = None
               ) -> Tuple[NodalContributions, NodalContributions]:
     """NTS weighted gaps g̃_j = A_j g_j and nodal areas A_j with exact derivatives.
 
@@ -58,6 +71,8 @@ def node_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarray,
     candidates. ``curve`` must be built on the chain ``master_seg``; coordinates come from
     ``master_x``. Returns ``(gap, area)``
     with one contribution per slave node in contact range, S = 3 (see module docstring).
+    ``previous`` (in/out, optional): the master segment of each slave node from the last
+    call (−1: none); kept while still valid, and updated in place.
     """
     slave_x = np.asarray(slave_x, dtype=float)
     slave_seg = np.asarray(slave_seg, dtype=np.int64).reshape(-1, 2)
@@ -70,7 +85,10 @@ def node_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarray,
     segs = np.concatenate([pm, pm])
     key = np.unique(nodes * n_ms + segs)
     nodes, segs = key // n_ms, key % n_ms
-    nodes, segs = _closest_segments(slave_x, master_x, nodes, segs, curve)
+    nodes, segs = _closest_segments(slave_x, master_x, nodes, segs, curve, previous)
+    if previous is not None:
+        previous[:] = -1
+        previous[nodes] = segs
     K = nodes.shape[0]
     if K == 0:
         return NodalContributions.empty(3, L), NodalContributions.empty(3, L)
@@ -100,6 +118,17 @@ def node_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarray,
     xi = curve.project(segs, xj, P)
     x_m, a_m = curve.evaluate(segs, xi, P)
     g = ad.dot(ad.sub(xj, x_m), curve.normal(a_m))
+    # A node that projects onto a master node (within NODE_TOL) measures its gap along the
+    # averaged normal there: the segment normals jump at the node, and with either one
+    # alone a slave node sitting on a master node has no equilibrium (Newton cycles).
+    xc, xd = curve.node_points(segs, P)
+    tc, td = curve.node_tangents(segs, P)
+    at_c = np.abs(ad.value(xi)) <= NODE_TOL
+    at_d = np.abs(ad.value(xi) - 1.0) <= NODE_TOL
+    if at_c.any() or at_d.any():
+        g_c = ad.dot(ad.sub(xj, xc), curve.normal(tc))
+        g_d = ad.dot(ad.sub(xj, xd), curve.normal(td))
+        g = ad.where(at_c, g_c, ad.where(at_d, g_d, g))
     gt = A * g
 
     gap = NodalContributions(nodes, slave_nodes, stencil, gt.val, gt.grad, gt.hess)

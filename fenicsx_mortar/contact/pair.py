@@ -42,6 +42,7 @@ class PairHook:
         self._skip = None
         self.augmentations = 0
         self._first_jacobian = True
+        self._nts_segment = np.full(slave.n, -1, dtype=np.int64)
         self.state = None
 
     # -- kinematics ---------------------------------------------------------------------
@@ -59,7 +60,7 @@ class PairHook:
             gap, area, _, _ = mortar.weighted_gaps(xs, s.seg, xm, m.seg, curve, pairs,
                                                    self.pair.n_gauss)
         else:
-            gap, area = nts.node_gaps(xs, s.seg, xm, m.seg, curve, pairs)
+            gap, area = nts.node_gaps(xs, s.seg, xm, m.seg, curve, pairs, self._nts_segment)
         g, A = nodal_sum(gap, s.n), nodal_sum(area, s.n)
         p, active = self.enforcement.pressure(g, A)
         return dict(xs=xs, xm=xm, gap=gap, area=area, g=g, A=A, p=p, active=active)
