@@ -114,7 +114,7 @@ class Traction:
 class Enforcement:
     """Penalty or augmented Lagrangian (Uzawa) enforcement. DESIGN.md §5."""
     type: Literal["penalty", "alm"] = "alm"
-    epsilon: float | None = None  # default: 100 E / h of the slave side
+    epsilon: float | None = None  # default E/h (slave body); ALM starts at min(epsilon, E/h)
     tolerance: float = 1e-8       # ALM: KKT residual (relative to the pressure scale)
     max_augmentations: int = 30
 

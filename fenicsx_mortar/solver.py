@@ -1,8 +1,9 @@
 """PETSc SNES Newton driver with load stepping, step cutting and contact hooks.
 
 A Newton solve counts as converged only when the residual norm is below ``atol`` AND below
-``rtol`` times the load step's first residual (or that first residual was already below
-``atol``) AND every hook (contact pair) accepts its own KKT residual: a huge first residual
+``rtol`` times the reference residual — the largest first residual of a load step seen so
+far, so that a cut (small) increment does not make the relative test unreachable — (or that
+reference was already below ``atol``) AND every hook (contact pair) accepts its own KKT residual: a huge first residual
 makes a relative decrease alone meaningless (DESIGN.md §5).
 """
 from __future__ import annotations
@@ -76,6 +77,7 @@ class NewtonSolver:
         self._callback_time = 0.0
         self.history: list[float] = []
         self._r0 = None
+        self._r_ref = 0.0
         comm = bulk.domain.mesh.comm
         self.snes = PETSc.SNES().create(comm)
         prefix = f"fm{id(self)}_"
@@ -139,7 +141,9 @@ class NewtonSolver:
     def _converged(self, snes, it, norms):
         fnorm = norms[2]
         if self._r0 is None:  # first residual of the load step (not of each augmentation)
-            self._r0 = fnorm
+            # a cut increment starts with a small residual: keep the largest step start seen
+            self._r_ref = max(self._r_ref, fnorm)
+            self._r0 = self._r_ref
         self.history.append(float(fnorm))
         s = self.settings
         if not math.isfinite(fnorm):

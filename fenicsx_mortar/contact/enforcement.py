@@ -66,14 +66,38 @@ class Penalty(Enforcement):
 
 class AugmentedLagrangian(Enforcement):
     """Uzawa: after each converged Newton solve p̂ ← p, until the KKT residual is below
-    ``tolerance``; the converged answer does not depend on ε."""
+    ``tolerance``; the converged answer does not depend on ε.
+
+    Each update shrinks the constraint error by about k/(k + ε) (k: the local stiffness of
+    the bodies), so a moderate ε keeps the first, hardest Newton solve robust and many
+    updates would follow; when an update gains less than a factor 10, ε grows ×10 (up to
+    100 ε₀, where round-off in the gaps starts to show in the residual): the later solves
+    start next to the answer, where a stiff ε does no harm."""
     name = "alm"
+    growth, max_growth = 10.0, 100.0
+
+    def __init__(self, epsilon: float, n_nodes: int, tolerance: float):
+        super().__init__(epsilon, n_nodes, tolerance)
+        self.epsilon0 = self.epsilon
+        self._last_kkt = np.inf
 
     def augment(self, g: np.ndarray, A: np.ndarray) -> bool:
-        if self.kkt_residual(g, A) <= self.tolerance:
+        kkt = self.kkt_residual(g, A)
+        if kkt <= self.tolerance:
             return False
         self.multiplier, _ = self.pressure(g, A)
+        if kkt > 0.1 * self._last_kkt:
+            self.epsilon = min(self.epsilon * self.growth, self.max_growth * self.epsilon0)
+        self._last_kkt = kkt
         return True
+
+    def accept(self) -> None:
+        super().accept()
+        self.epsilon, self._last_kkt = self.epsilon0, np.inf
+
+    def reject(self) -> None:
+        super().reject()
+        self.epsilon, self._last_kkt = self.epsilon0, np.inf
 
 
 ENFORCEMENTS = {c.name: c for c in (Penalty, AugmentedLagrangian)}

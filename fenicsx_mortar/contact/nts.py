@@ -33,6 +33,7 @@ from .kernel import NodalContributions, chain_links
 
 STICKY_TOL = 1e-8
 NODE_TOL = 1e-6
+WEDGE = 0.5
 
 
 def _closest_segments(slave_x, master_x, nodes, segs, curve, previous=None):
@@ -51,7 +52,12 @@ def _closest_segments(slave_x, master_x, nodes, segs, curve, previous=None):
     kept = np.zeros_like(ok)
     if previous is not None:
         kept = (previous[nodes] == segs) & (xi >= -STICKY_TOL) & (xi <= 1.0 + STICKY_TOL)
-    ok |= kept
+    # blind wedge outside a convex master corner: no segment qualifies, the closest master
+    # point is the corner node itself (its gap is measured along the averaged normal)
+    regular = np.zeros(int(nodes.max(initial=-1)) + 1, dtype=bool)
+    regular[nodes[ok | kept]] = True
+    wedge = ~regular[nodes] & (xi >= -WEDGE) & (xi <= 1.0 + WEDGE)
+    ok |= kept | wedge
     nodes, segs, g, kept = nodes[ok], segs[ok], g[ok], kept[ok]
     order = np.lexsort((np.abs(g), ~kept, nodes))
     nodes, segs = nodes[order], segs[order]
@@ -123,8 +129,8 @@ def node_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarray,
     # alone a slave node sitting on a master node has no equilibrium (Newton cycles).
     xc, xd = curve.node_points(segs, P)
     tc, td = curve.node_tangents(segs, P)
-    at_c = np.abs(ad.value(xi)) <= NODE_TOL
-    at_d = np.abs(ad.value(xi) - 1.0) <= NODE_TOL
+    at_c = ad.value(xi) <= NODE_TOL          # on the node, or in the wedge beyond it
+    at_d = ad.value(xi) >= 1.0 - NODE_TOL
     if at_c.any() or at_d.any():
         g_c = ad.dot(ad.sub(xj, xc), curve.normal(tc))
         g_d = ad.dot(ad.sub(xj, xd), curve.normal(td))

@@ -30,7 +30,13 @@ class PairHook:
         self.comm = slave.comm
         h = float(np.mean(np.linalg.norm(slave.X[slave.seg[:, 1]] - slave.X[slave.seg[:, 0]], axis=1)))
         self.h = h
-        eps = pair.enforcement.epsilon or 100.0 * E_slave / h
+        nominal = E_slave / h  # pressure per gap of a surface layer one element deep
+        eps = pair.enforcement.epsilon or nominal
+        if pair.enforcement.type == "alm":
+            # the ALM answer does not depend on ε; a start stiffer than the bodies makes the
+            # first Newton solve fragile (Hertz at h = a/4 fails from 10 E/h), so start at
+            # most at E/h and let the augmentations raise it (enforcement.py)
+            eps = min(eps, nominal)
         self.enforcement = ENFORCEMENTS[pair.enforcement.type](
             eps, slave.n, pair.enforcement.tolerance)
         self.radius = pair.search_radius or 2.0 * h

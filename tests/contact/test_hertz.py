@@ -1,0 +1,45 @@
+"""Hertz (B2) with mortar + ALM: p₀ and a within 2 % at h_c = a/10, force balance to
+round-off, and an ALM answer that does not depend on the penalty parameter."""
+import importlib.util
+
+import numpy as np
+import pytest
+
+from conftest import ROOT
+from fenicsx_mortar import load_scene, solve
+
+spec = importlib.util.spec_from_file_location("demo_hertz", ROOT / "demos/demo_hertz.py")
+demo = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(demo)
+
+
+def hertz(h_contact: float, epsilon: float | None = None, enforcement: str = "alm"):
+    scene = load_scene(ROOT / "demos/scenes/hertz.toml")
+    scene.contacts[0].enforcement.type = enforcement
+    scene.mesh.params["h_contact"] = h_contact
+    scene.contacts[0].enforcement.epsilon = epsilon
+    result = solve(scene, log=lambda s: None)
+    assert result.converged, result.message
+    return result
+
+
+def test_hertz_pressure_at_a_over_10():
+    m = demo.hertz_metrics(hertz(demo.a / 10))
+    assert abs(m["p0_error"]) < 0.02
+    assert abs(m["a_error"]) < 0.02
+    assert m["force_error"] < 1e-8
+
+
+@pytest.mark.parametrize("kind", ["alm", "penalty"])
+def test_dependence_on_penalty_parameter(kind):
+    """ALM: two penalty parameters a decade apart give the same converged pressures.
+    Penalty: they do not (its answer carries a penetration ~ p/ε)."""
+    p = []
+    for eps in (3e3, 3e4):
+        scene_eps = hertz(demo.a / 4, eps, kind)
+        p.append(scene_eps.hooks[0].interface()["pressure"])
+    change = np.abs(p[0] - p[1]).max() / p[1].max()
+    if kind == "alm":
+        assert change <= 1e-6
+    else:
+        assert change > 1e-2
