@@ -15,9 +15,11 @@ def main(argv: list[str] | None = None) -> int:
                                      description="2D finite-deformation mortar contact on FEniCSx")
     sub = parser.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="run a scene file")
-    run.add_argument("scene", type=Path, help="scene file (TOML, see docs/scenes.md)")
+    run.add_argument("scene", type=Path, nargs="?", help="scene file (TOML, see docs/scenes.md)")
     run.add_argument("--out", type=Path, default=None,
                      help="output directory (default: results/<scene name>)")
+    run.add_argument("--restart", type=Path, default=None, metavar="DIR",
+                     help="continue the run in DIR from its last converged step")
     check = sub.add_parser("check", help="validate a scene file (and its mesh) without solving")
     check.add_argument("scene", type=Path)
     args = parser.parse_args(argv)
@@ -27,7 +29,14 @@ def main(argv: list[str] | None = None) -> int:
     from .scene import SceneError, load_scene
     comm = MPI.COMM_WORLD
     try:
-        scene = load_scene(args.scene)
+        if args.command == "run" and args.restart is not None:
+            from .scene import load_scene_json
+            scene = load_scene_json(args.restart / "scene.json")
+            args.scene, args.out = args.restart / "scene.json", args.restart
+        elif args.scene is None:
+            parser.error("give a scene file (or --restart DIR)")
+        else:
+            scene = load_scene(args.scene)
         if args.command == "check":
             from .meshing import build_domain
             build_domain(scene, comm)
@@ -36,7 +45,7 @@ def main(argv: list[str] | None = None) -> int:
             return 0
         from .run import solve
         out = args.out or Path("results") / args.scene.stem
-        result = solve(scene, out, comm)
+        result = solve(scene, out, comm, restart=args.restart is not None)
     except SceneError as e:
         if comm.rank == 0:
             print(f"fenicsx-mortar: error: {e}", file=sys.stderr)

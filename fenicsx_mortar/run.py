@@ -1,7 +1,11 @@
 """``solve(scene)``: mesh → bulk forms → contact pairs (only if declared) → load steps → outputs."""
 from __future__ import annotations
 
+import dataclasses
+import json
+import signal
 import sys
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -11,10 +15,10 @@ import numpy as np
 from mpi4py import MPI
 
 from . import _dolfinx as dx
-from . import output
+from . import checkpoint, output
 from .bulk import Bulk, StressOutput, build_bulk
 from .meshing import Domain, build_domain
-from .scene import Scene
+from .scene import Scene, SceneError
 from .solver import NewtonSolver, StepResult, Timings, run_load_steps
 
 
@@ -38,10 +42,14 @@ class Result:
 
 
 def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM_WORLD,
-          log: Callable[[str], None] | None = None) -> Result:
-    """Run a scene. With ``out``, write summary.json, solution.xdmf and plots there
-    (after every converged step, so a failed run keeps what converged)."""
+          log: Callable[[str], None] | None = None, restart: bool = False) -> Result:
+    """Run a scene. With ``out``, write summary.json, solution.xdmf, plots and a checkpoint
+    there after every converged step, so a run that fails or is interrupted (SIGINT,
+    SIGTERM) keeps what converged; ``restart=True`` continues from ``out``'s checkpoint."""
     scene.validate()
+    if restart and (out is None or not (Path(out) / checkpoint.FILE).is_file()):
+        raise SceneError(f"restart: {out}/{checkpoint.FILE} does not exist (no converged step "
+                         "to continue from)")
     rank0 = comm.rank == 0
     log = log or (_log_line if rank0 else (lambda s: None))
     timings = Timings()
@@ -61,25 +69,34 @@ def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM
         if scene.contacts:
             from .contact.pair import build_contact  # only a scene with contact loads it
             hooks, matrix = build_contact(scene, dom, bulk, timings)
-        solver = NewtonSolver(bulk, scene.solver, hooks, timings, matrix)
+    t0, k0, steps = 0.0, 0, []
+    if restart:
+        t0, k0, steps = checkpoint.load(Path(out), comm, bulk.u, hooks)
+        log(f"  restart from step {k0} at pseudo-time {t0:.6g}")
+    stop = _StopRequest(comm)
+    with timings("jit"):
+        solver = NewtonSolver(bulk, scene.solver, hooks, timings, matrix, stop.requested)
     V = bulk.V
     ndofs = V.dofmap.index_map.size_global * V.dofmap.index_map_bs
     log(f"  dofs: {ndofs}, ranks: {comm.size}")
 
     summary = {"title": scene.title, "converged": False, "message": "running",
                "effects": scene.effects(), "dofs": ndofs, "ranks": comm.size,
-               "steps": [], "timings": timings}
-    steps: list[dict] = []
+               "steps": steps, "timings": timings}
     writer = None
     if out is not None:
         if rank0:
             out.mkdir(parents=True, exist_ok=True)
+            if not restart:
+                output.write_atomic(out / "scene.json", scene_to_json(scene))
         comm.barrier()
         with timings("output"):
             if scene.output.xdmf:
-                writer = dx.XDMFWriter(comm, str(out / "solution.xdmf"), dom.mesh)
+                # a restart continues in its own file: XDMF cannot be reopened for appending
+                name = f"solution_from_step_{k0}.xdmf" if restart else "solution.xdmf"
+                writer = dx.XDMFWriter(comm, str(out / name), dom.mesh)
                 stress.update()
-                writer.write([bulk.u, stress.sigma], 0.0)
+                writer.write([bulk.u, stress.sigma], t0)
 
     def on_step(k: int, t: float, res: StepResult, cuts: int) -> None:
         b = solver.unconstrained_residual()
@@ -93,17 +110,20 @@ def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM
             stress.update()
             if writer is not None:
                 writer.write([bulk.u, stress.sigma], t)
-            if out is not None and rank0:
-                summary["steps"] = steps
-                output.write_summary(out, summary)
-                for h in hooks:
-                    h.write_interface(out, k)
+            if out is not None:
+                checkpoint.save(out, comm, bulk.u, hooks, t, k, steps)
+                if rank0:
+                    output.write_summary(out, summary)
+                    for h in hooks:
+                        h.write_interface(out, k)
         log(_step_line(k, t, res, cuts))
 
     progress = _progress_printer() if rank0 else (lambda s: None)
-    completed, message = run_load_steps(solver, scene.steps, on_step, progress,
-                                        max(c.enforcement.max_augmentations for c in scene.contacts)
-                                        if scene.contacts else 0)
+    with stop:
+        completed, message = run_load_steps(
+            solver, scene.steps, on_step, progress,
+            max(c.enforcement.max_augmentations for c in scene.contacts) if scene.contacts else 0,
+            t_start=t0, k_start=k0, should_stop=stop.requested)
     timings["total"] = time.perf_counter() - t_start
     with timings("output"):
         if writer is not None:
@@ -120,6 +140,41 @@ def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM
     log(("done: " if completed else "FAILED: ") + message)
     return Result(scene, completed, message, steps, dict(timings), dom, bulk, stress, hooks,
                   summary)
+
+
+class _StopRequest:
+    """SIGINT/SIGTERM set a flag; the solver checks it (collectively) and stops cleanly."""
+
+    def __init__(self, comm: MPI.Comm):
+        self.comm, self.signal, self._old = comm, None, {}
+
+    def __enter__(self):
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                self._old[sig] = signal.signal(sig, self._handle)
+        return self
+
+    def __exit__(self, *exc):
+        for sig, old in self._old.items():
+            signal.signal(sig, old)
+
+    def _handle(self, signum, frame):
+        self.signal = signal.Signals(signum).name
+
+    def requested(self) -> str | None:
+        names = self.comm.allgather(self.signal)
+        return next((n for n in names if n), None)
+
+
+def scene_to_json(scene: Scene) -> str:
+    """The scene as JSON (same keys as the TOML), kept beside the outputs for restarts."""
+    def drop_none(v):  # TOML has no null: an absent key means "default"
+        if isinstance(v, dict):
+            return {k: drop_none(x) for k, x in v.items() if x is not None}
+        if isinstance(v, list):
+            return [drop_none(x) for x in v]
+        return v
+    return json.dumps(drop_none(dataclasses.asdict(scene)), indent=1) + "\n"
 
 
 def _step_line(k: int, t: float, res: StepResult, cuts: int) -> str:

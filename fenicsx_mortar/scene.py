@@ -355,6 +355,20 @@ def load_scene(path: str | Path) -> Scene:
         raise SceneError(f"{path}: {e}") from None
 
 
+def load_scene_json(path: str | Path) -> Scene:
+    """A scene saved by a run (``DIR/scene.json``), for restarts."""
+    import json
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, ValueError) as e:
+        raise SceneError(f"{path}: cannot read the saved scene ({e})") from None
+    base_dir = data.pop("base_dir", ".")
+    scene = from_dict(Scene, data, "")
+    scene.base_dir = base_dir
+    return scene.validate()
+
+
 def from_dict(cls, data: dict, path: str):
     """Build dataclass ``cls`` from a TOML table: unknown keys and wrong types are errors."""
     if not isinstance(data, dict):

@@ -67,7 +67,9 @@ class NewtonSolver:
     """SNES (newtonls + line search, LU by default) on bulk forms plus hooks."""
 
     def __init__(self, bulk: Bulk, settings: SolverSettings, hooks: list[Hook],
-                 timings: Timings, matrix=None):
+                 timings: Timings, matrix=None,
+                 should_stop: Callable[[], str | None] = lambda: None):
+        self.should_stop = should_stop
         self.bulk, self.settings, self.hooks, self.timings = bulk, settings, hooks, timings
         self.u = bulk.u
         self.b = dx.create_vector(bulk.residual)
@@ -148,6 +150,8 @@ class NewtonSolver:
         s = self.settings
         if not math.isfinite(fnorm):
             return PETSc.SNES.ConvergedReason.DIVERGED_FNORM_NAN
+        if self.should_stop():
+            return PETSc.SNES.ConvergedReason.DIVERGED_INNER  # no DIVERGED_USER in petsc4py 3.18
         small = fnorm <= s.atol and (fnorm <= s.rtol * self._r0 or self._r0 <= s.atol)
         if small and all(h.newton_ok() for h in self.hooks):
             return PETSc.SNES.ConvergedReason.CONVERGED_FNORM_ABS
@@ -206,15 +210,23 @@ def _linear_solver_options(name: str) -> dict:
 
 def run_load_steps(solver: NewtonSolver, steps: Steps, on_step: Callable[[int, float, StepResult, int], None],
                    on_progress: Callable[[str], None] = lambda s: None,
-                   max_augmentations: int = 50) -> tuple[bool, str]:
-    """Advance pseudo-time through ``steps``; halve a failed increment, at most ``max_cuts``
-    times between two consecutive targets. Returns (completed, message)."""
-    t = 0.0
-    k = 0
+                   max_augmentations: int = 50, t_start: float = 0.0, k_start: int = 0,
+                   should_stop: Callable[[], str | None] = lambda: None) -> tuple[bool, str]:
+    """Advance pseudo-time through ``steps`` from ``t_start``; halve a failed increment, at
+    most ``max_cuts`` times between two consecutive targets. Returns (completed, message)."""
+    t = t_start
+    k = k_start
     for target in steps.targets():
+        if target <= t + 1e-14 * max(1.0, abs(target)):
+            continue
         dt = target - t
         cuts = 0
         while t < target - 1e-14 * max(1.0, abs(target)):
+            sig = should_stop()
+            if sig:
+                solver.bulk.set_time(t)
+                return False, (f"interrupted by {sig} at pseudo-time {t:.6g} (last converged "
+                               f"step {k}); continue with: fenicsx-mortar run --restart DIR")
             t_try = min(t + dt, target)
             saved = solver.save_state()
             solver.bulk.set_time(t_try)
@@ -233,6 +245,8 @@ def run_load_steps(solver: NewtonSolver, steps: Steps, on_step: Callable[[int, f
                 h.reject_step()
             solver.restore_state(saved)
             solver.bulk.set_time(t)
+            if should_stop():
+                continue  # reported at the top of the loop
             cuts += 1
             if cuts > steps.max_cuts:
                 return False, (f"stopped at pseudo-time {t:.6g} (last converged step {k}): the "

@@ -127,6 +127,16 @@ class PairHook:
     def reject_step(self) -> None:
         self.enforcement.reject()
 
+    def state_dict(self) -> dict[str, np.ndarray]:
+        """History carried between steps (for checkpoints)."""
+        return {"multiplier": self.enforcement.multiplier.copy(),
+                "nts_segment": self._nts_segment.copy()}
+
+    def load_state_dict(self, d: dict[str, np.ndarray]) -> None:
+        self.enforcement.multiplier = np.array(d["multiplier"], dtype=float)
+        self.enforcement.accept()
+        self._nts_segment = np.array(d["nts_segment"], dtype=np.int64)
+
     # -- outputs ------------------------------------------------------------------------
     def interface(self) -> dict[str, np.ndarray]:
         st = self.state

@@ -1,0 +1,72 @@
+"""Checkpoints of the last converged step, for ``fenicsx-mortar run --restart DIR``.
+
+The displacement is stored per ORIGINAL mesh node (gmsh input numbering), so a restart may
+use another number of MPI ranks; each contact pair adds its history (ALM multipliers, NTS
+segment choices) through ``state_dict``/``load_state_dict``. Written atomically.
+"""
+from __future__ import annotations
+
+import io
+import json
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+from mpi4py import MPI
+
+from . import _dolfinx as dx
+
+FILE = "checkpoint.npz"
+
+
+def _owned_nodes(V):
+    """(input node index, local dofs (n, 2)) of the vertices this rank owns."""
+    msh = V.mesh
+    n_owned = msh.topology.index_map(0).size_local
+    verts = np.arange(n_owned, dtype=np.int32)
+    geom = dx.vertex_to_geometry_node(msh)[verts]
+    return np.asarray(msh.geometry.input_global_indices)[geom], dx.vertex_dofs_all(V, verts)
+
+
+def save(out: Path, comm: MPI.Comm, u, hooks, t: float, k: int, steps: list[dict]) -> None:
+    idx, dofs = _owned_nodes(u.function_space)
+    parts = comm.gather((idx, u.x.array[dofs]), root=0)
+    if comm.rank != 0:
+        return
+    idx = np.concatenate([p[0] for p in parts])
+    vals = np.concatenate([p[1] for p in parts])
+    order = np.argsort(idx)
+    arrays = {"node": idx[order], "u": vals[order], "time": np.array(t), "step": np.array(k),
+              "steps": np.array(json.dumps(steps, default=float))}
+    for i, h in enumerate(hooks):
+        for key, value in h.state_dict().items():
+            arrays[f"hook{i}_{key}"] = value
+    buf = io.BytesIO()
+    np.savez(buf, **arrays)
+    fd, tmp = tempfile.mkstemp(dir=out, prefix=f".{FILE}.")
+    with os.fdopen(fd, "wb") as f:
+        f.write(buf.getvalue())
+    os.replace(tmp, out / FILE)
+
+
+def load(out: Path, comm: MPI.Comm, u, hooks) -> tuple[float, int, list[dict]]:
+    """Set ``u`` and the hooks' history from the checkpoint; return (time, step, records)."""
+    data = None
+    if comm.rank == 0:
+        with np.load(out / FILE) as f:
+            data = {key: f[key] for key in f.files}
+    data = comm.bcast(data, root=0)
+    V = u.function_space
+    msh = V.mesh
+    n_all = msh.topology.index_map(0).size_local + msh.topology.index_map(0).num_ghosts
+    verts = np.arange(n_all, dtype=np.int32)
+    idx = np.asarray(msh.geometry.input_global_indices)[dx.vertex_to_geometry_node(msh)[verts]]
+    pos = np.searchsorted(data["node"], idx)
+    if np.any(pos >= len(data["node"])) or np.any(data["node"][np.minimum(pos, len(data["node"]) - 1)] != idx):
+        raise ValueError(f"{out / FILE} does not match this mesh")
+    u.x.array[dx.vertex_dofs_all(V, verts)] = data["u"][pos]
+    for i, h in enumerate(hooks):
+        prefix = f"hook{i}_"
+        h.load_state_dict({k[len(prefix):]: v for k, v in data.items() if k.startswith(prefix)})
+    return float(data["time"]), int(data["step"]), json.loads(str(data["steps"]))
