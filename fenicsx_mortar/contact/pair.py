@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.spatial import cKDTree
 from mpi4py import MPI
 
 from .. import _dolfinx as dx
@@ -203,6 +204,7 @@ def build_contact(scene: Scene, dom, bulk, timings):
     for c in scene.contacts:
         slave = build_surface(dom, c.slave, f"{c.name}:slave")
         master = build_surface(dom, c.master, f"{c.name}:master")
+        _check_facing(scene.contacts.index(c), slave, master)
         E = _slave_modulus(scene, dom, slave)
         hook = PairHook(c, slave, master, E, V, timings)
         hook._l2g = l2g
@@ -211,6 +213,21 @@ def build_contact(scene: Scene, dom, bulk, timings):
     with timings("contact"):
         A = assembly.create_matrix(bulk.jacobian, blocks, V)
     return hooks, A
+
+
+def _check_facing(i: int, slave: Surface, master: Surface) -> None:
+    """Some slave segment must face its nearest master segment (outward normals within 60°
+    of opposite): a pair that never faces is a mistake in the scene, not a contact."""
+    def mids_normals(s: Surface):
+        a, b = s.X[s.seg[:, 0]], s.X[s.seg[:, 1]]
+        t = (b - a) / np.linalg.norm(b - a, axis=1)[:, None]
+        return 0.5 * (a + b), np.column_stack([-t[:, 1], t[:, 0]])
+    ms, ns = mids_normals(slave)
+    mm, nm = mids_normals(master)
+    _, j = cKDTree(mm).query(ms)
+    if not np.any(np.einsum("ij,ij->i", ns, nm[j]) < -0.5):
+        raise SceneError(f"contacts[{i}]: the slave and master surfaces do not face each "
+                         "other (their outward normals never oppose): check the group names")
 
 
 def _slave_modulus(scene: Scene, dom, slave: Surface) -> float:
