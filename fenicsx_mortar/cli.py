@@ -56,6 +56,11 @@ def main(argv: list[str] | None = None) -> int:
               f"{len(result.steps)} steps, "
               f"{sum(s['newton_iterations'] for s in result.steps)} Newton iterations, "
               f"{t.get('total', 0):.2f} s total; outputs in {out}")
+        if result.steps:
+            for name, c in result.steps[-1].get("contact", {}).items():
+                print(f"contact {name}: normal force {c['normal_force']:.6g}, max pressure "
+                      f"{c['max_pressure']:.6g}, {c['active_nodes']} active nodes, "
+                      f"KKT residual {c['kkt_residual']:.1e}")
     return 0 if result.converged else 1
 
 

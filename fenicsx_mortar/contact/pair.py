@@ -180,6 +180,11 @@ class PairHook:
         fig, ax = plt.subplots(figsize=(6, 3.5))
         order = np.argsort(d["x"])
         ax.plot(d["x"][order], d["pressure"][order], "o-", ms=3)
+        on = d["pressure"] > 0
+        if on.any():  # zoom on the contact zone
+            lo, hi = d["x"][on].min(), d["x"][on].max()
+            pad = max(0.5 * (hi - lo), 1e-12)
+            ax.set_xlim(lo - pad, hi + pad)
         ax.set_xlabel("x (current configuration)")
         ax.set_ylabel("contact pressure")
         ax.set_title(f"{self.pair.name}: pressure at the last converged step")

@@ -1,0 +1,207 @@
+"""Projection of many points onto a master curve: vectorized safeguarded Newton
+(DESIGN.md §3, §6).
+
+Every :class:`~.curves.MasterCurve` states its projection condition on a segment as a
+scalar function F(ξ) (:meth:`~.curves.MasterCurve.condition`) that *decreases* through the
+wanted root:
+
+* closest point (polyline, Hermite, B-spline; DESIGN.md §3 and §6.5):
+      F(ξ) = (x_s − x(ξ))·x′(ξ),     F′ = −|x′|² + (x_s − x)·x″      (−F = dD/dξ, D = ½|x_s − x|²)
+  (the Hermite and B-spline conditions are quintic in ξ);
+* projection along the smoothed normal (averaged normals, §3):
+      F(ξ) = (x_s − x(ξ)) × m(ξ),    m = (1−ξ) n̄_c + ξ n̄_d   (quadratic in ξ).
+
+:func:`solve_on_segments` finds, per batch entry, the root on the segment's own curve piece
+(extended beyond ξ ∈ [0, 1] as a polynomial) inside the window ``WINDOW``:
+
+1. bracketing: F at ``N_SAMPLES`` equidistant ξ of the window; among the sign changes
+   F > 0 → F ≤ 0 the one nearest to x_s is taken;
+2. safeguarded Newton (Numerical Recipes' rtsafe): a Newton step that leaves the bracket or
+   does not halve the step is replaced by bisection; the bracket shrinks every iteration,
+   so at most ``MAX_ITER`` iterations are made (bisection alone reaches 1e-16 in 60);
+3. no sign change: the root lies outside the window; ξ is returned at the window end
+   (status BELOW / ABOVE) — "not on this segment", never a wrong root;
+4. failure (no convergence, non-finite input): status FAILED, reported by the callers.
+
+:func:`project` adds the exact derivatives when the inputs are :class:`~.ad.Jet2`: with the
+converged float root ξ₀ and D = F′(ξ₀) it makes two chord steps in jet arithmetic,
+    ξ₁ = ξ₀ − F(ξ₀)/D,   ξ₂ = ξ₁ − F(ξ₁)/D.
+The error of ξ₀ in the local variables δ is O(δ); a chord step with the exact D at the base
+point maps an O(δᵏ) error to O(δᵏ⁺¹), so ξ₂ is exact to second order: its gradient is the
+implicit-function derivative −F_x/F_ξ and its Hessian
+−(F_xx + F_xξ ξ_xᵀ + ξ_x F_ξx + F_ξξ ξ_x ξ_xᵀ)/F_ξ (tests/contact/test_projection.py).
+
+:func:`closest_point` projects points onto the whole curve: it starts on the segments next
+to the nearest nodes and hands over to the neighbouring segment while the root leaves
+[0, 1] (at most ``max_hops`` times); at an open chain end or a convex corner it stops at
+the node.
+"""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from . import ad
+from .ad import Jet2
+
+WINDOW = (-1.0, 2.0)
+N_SAMPLES = 13
+MAX_ITER = 60
+STEP_TOL = 1e-11      # a Newton step this small leaves an error ~ (F″/2F′)·STEP_TOL² ≈ 1e-22
+FOUND, BELOW, ABOVE, FAILED = 0, 1, 2, -1
+
+
+class ProjectionError(RuntimeError):
+    """The safeguarded Newton did not converge for some points."""
+
+
+def _values(v):
+    return (ad.value(v[0]), ad.value(v[1]))
+
+
+def _is_jet(*items) -> bool:
+    return any(isinstance(c, Jet2) for v in items for c in v)
+
+
+def solve_on_segments(curve, seg_index, xs, P, window=WINDOW, n_samples: int = N_SAMPLES,
+                      max_iter: int = MAX_ITER):
+    """Float root ξ of the curve's projection condition on each entry's segment.
+
+    ``seg_index``, ``xs`` (2-tuple) and the local points ``P`` (list of 2-tuples) broadcast
+    to a batch shape B (values of jets are used). Returns ``(xi, dF, status)``, each of
+    shape B: the root, F′ there, and FOUND / BELOW / ABOVE (root outside the window, ξ at
+    the window's end) / FAILED.
+    """
+    seg = np.asarray(seg_index)
+    xs = _values(xs)
+    P = [_values(p) for p in P]
+    shape = np.broadcast_shapes(seg.shape, *(np.shape(c) for c in xs),
+                                *(np.shape(c) for p in P for c in p))
+    nd = len(shape)
+    lo, hi = window
+    grid = np.linspace(lo, hi, n_samples).reshape((-1,) + (1,) * nd)
+    F = np.broadcast_to(curve.condition(seg, grid, xs, P), (n_samples,) + shape)
+    x = curve.derivatives(seg, grid, P, 0)[0]
+    d2 = np.broadcast_to((xs[0] - x[0]) ** 2 + (xs[1] - x[1]) ** 2, (n_samples,) + shape)
+
+    # 1. bracket: a decreasing sign change, the one nearest to x_s
+    down = (F[:-1] > 0.0) & (F[1:] <= 0.0)
+    score = np.where(down, np.minimum(d2[:-1], d2[1:]), np.inf)
+    k = np.argmin(score, axis=0)
+    has = np.isfinite(np.take_along_axis(score, k[None], 0)[0])
+    a = np.take_along_axis(np.broadcast_to(grid, F.shape)[:-1], k[None], 0)[0].copy()
+    b = a + (hi - lo) / (n_samples - 1)
+    Fa = np.take_along_axis(F[:-1], k[None], 0)[0]
+    Fb = np.take_along_axis(F[1:], k[None], 0)[0]
+
+    # 3. no bracket: the root is beyond the window on the side where the distance decreases
+    status = np.full(shape, FOUND, dtype=np.int64)
+    all_pos, all_neg = np.all(F > 0.0, axis=0), np.all(F <= 0.0, axis=0)
+    near_lo = d2[0] <= d2[-1]
+    status[~has] = np.where(all_pos | (~all_neg & ~near_lo), ABOVE, BELOW)[~has]
+    finite = np.all(np.isfinite(F), axis=0)
+    status[~finite] = FAILED
+
+    # 2. safeguarded Newton, started by regula falsi inside the bracket
+    with np.errstate(divide="ignore", invalid="ignore"):
+        xi = np.where(Fa - Fb > 0.0, a + Fa * (b - a) / (Fa - Fb), 0.5 * (a + b))
+    xi = np.where(has, xi, np.where(status == ABOVE, hi, lo))
+    active = has & finite
+    last_step = np.full(shape, hi - lo)
+    dF = np.full(shape, -1.0)
+    for _ in range(max_iter):
+        if not active.any():
+            break
+        Fx, dFx = curve.condition(seg, xi, xs, P, derivative=True)
+        Fx, dFx = np.broadcast_to(Fx, shape), np.broadcast_to(dFx, shape)
+        dF = np.where(active, dFx, dF)
+        right = Fx > 0.0                                  # the root lies right of xi
+        a = np.where(active & right, xi, a)
+        b = np.where(active & ~right, xi, b)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            step = -Fx / dFx
+        new = xi + step
+        newton = (new > a) & (new < b) & (np.abs(step) <= 0.5 * last_step)
+        new = np.where(newton, new, 0.5 * (a + b))
+        done = (Fx == 0.0) | (newton & (np.abs(step) <= STEP_TOL)) | (b - a <= 1e-15)
+        last_step = np.where(active, np.abs(new - xi), last_step)
+        xi = np.where(active & (Fx != 0.0), new, xi)
+        active &= ~done
+    status[active] = FAILED
+    return xi, dF, status
+
+
+def project(curve, seg_index, xs, P):
+    """Root ξ̄ of the projection condition on each entry's segment (unclamped), as a jet
+    when ``xs`` or ``P`` are jets (exact to second order, see the module docstring).
+
+    Entries whose root lies outside the window get ξ̄ at the window's end (−1 or 2), i.e.
+    "not on this segment". Raises :class:`ProjectionError` naming the number of entries
+    where the safeguarded Newton failed.
+    """
+    xi0, dF, status = solve_on_segments(curve, seg_index, xs, P)
+    failed = int(np.count_nonzero(status == FAILED))
+    if failed:
+        raise ProjectionError(f"{type(curve).__name__}: projection failed for {failed} of "
+                              f"{status.size} points (no convergence or non-finite input)")
+    if not _is_jet(xs, *P):
+        return xi0
+    D = np.where((status == FOUND) & (dF < 0.0), dF, -1.0)
+    inv = 1.0 / D
+    xi1 = xi0 - curve.condition(seg_index, xi0, xs, P) * inv
+    return xi1 - curve.condition(seg_index, xi1, xs, P) * inv
+
+
+class ClosestPoint(NamedTuple):
+    seg: np.ndarray        # (n,) segment of the projection
+    xi: np.ndarray         # (n,) ξ ∈ [0, 1] on it
+    x: np.ndarray          # (n, 2) the curve point
+    distance: np.ndarray   # (n,) |x_s − x| (for a closest-point curve the distance to it)
+    ok: np.ndarray         # (n,) False: Newton failed or the hand-over did not settle
+
+
+def closest_point(curve, points: np.ndarray, n_starts: int = 2,
+                  max_hops: int = 64) -> ClosestPoint:
+    """Project ``points (n, 2)`` onto the whole curve (values only).
+
+    Starts on both segments at each of the ``n_starts`` nearest nodes, hands over to the
+    next / previous segment while the root on the current one lies beyond ξ = 1 / ξ = 0,
+    stops at a chain end or when it would return to the segment it came from (a corner
+    node), clamps ξ to [0, 1], and keeps the nearest of the results. Failures are
+    reported in ``ok``, not raised.
+    """
+    pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    n = pts.shape[0]
+    before, after = curve.node_segments()
+    used = np.unique(curve.seg)
+    _, near = cKDTree(curve.x[used]).query(pts, k=min(n_starts, used.shape[0]))
+    near = used[np.asarray(near).reshape(n, -1)]
+    starts = np.concatenate([before[near], after[near]], axis=1)          # (n, 2 n_starts)
+    starts = np.where(starts >= 0, starts, np.concatenate([after[near], before[near]], 1))
+    owner = np.repeat(np.arange(n), starts.shape[1])
+    seg = starts.ravel()
+    xs = (pts[owner, 0], pts[owner, 1])
+    came = np.full(seg.shape, -1)
+    moving = np.ones(seg.shape, dtype=bool)
+    for _ in range(max_hops):
+        P = curve.split_points(curve.local_points(seg))
+        xi, _, status = solve_on_segments(curve, seg, xs, P)
+        nxt, prv = curve.next_seg[seg], curve.prev_seg[seg]
+        go_next = (xi > 1.0) & (nxt >= 0) & (nxt != came)
+        go_prev = (xi < 0.0) & (prv >= 0) & (prv != came)
+        moving = go_next | go_prev
+        if not moving.any():
+            break
+        came = np.where(moving, seg, came)
+        seg = np.where(go_next, nxt, np.where(go_prev, prv, seg))
+    xi = np.clip(xi, 0.0, 1.0)
+    P = curve.split_points(curve.local_points(seg))
+    xm = curve.derivatives(seg, xi, P, 0)[0]
+    dist = np.hypot(xs[0] - xm[0], xs[1] - xm[1])
+    ok = (status != FAILED) & ~moving
+    dist_rank = np.where(ok, dist, np.inf).reshape(n, -1)
+    best = np.argmin(dist_rank, axis=1) + np.arange(n) * starts.shape[1]
+    return ClosestPoint(seg[best], xi[best], np.stack([xm[0][best], xm[1][best]], axis=1),
+                        dist[best], ok.reshape(n, -1).any(axis=1))
