@@ -9,7 +9,7 @@ from mpi4py import MPI
 
 from fenicsx_mortar import load_scene, solve
 
-scene = load_scene(sys.argv[1])
+scene = load_scene(sys.argv[1])  # (a scene file; base_dir is its folder)
 res = solve(scene, log=lambda s: None)
 V = res.u.function_space
 n = V.dofmap.index_map.size_local

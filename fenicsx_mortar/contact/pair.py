@@ -46,6 +46,10 @@ class PairHook:
         self.n_global = V.dofmap.index_map.size_global * V.dofmap.index_map_bs
         self.mine = np.zeros(slave.n, dtype=bool)
         self.mine[slave._mine] = True
+        # this rank integrates the slave segments touching the nodes whose dofs it owns: the
+        # weighted gaps of those nodes are then complete here (one segment of overlap at
+        # each partition boundary), and their terms are inserted by this rank only
+        self.my_segments = self.mine[slave.seg[:, 0]] | self.mine[slave.seg[:, 1]]
         self._skip = None
         self.augmentations = 0
         self._first_jacobian = True
@@ -62,15 +66,24 @@ class PairHook:
     def _evaluate(self, xs, xm) -> dict:
         s, m = self.slave, self.master
         pairs = candidate_pairs(xs, s.seg, xm, m.seg, self.radius)
+        if not self.my_segments.all():
+            keep = self.my_segments[pairs[0]]
+            pairs = (pairs[0][keep], pairs[1][keep])
         curve = Polyline(xm, m.seg)
         if self.pair.method == "mortar":
             gap, area, _, _ = mortar.weighted_gaps(xs, s.seg, xm, m.seg, curve, pairs,
                                                    self.pair.n_gauss)
         else:
             gap, area = nts.node_gaps(xs, s.seg, xm, m.seg, curve, pairs, self._nts_segment)
-        g, A = nodal_sum(gap, s.n), nodal_sum(area, s.n)
+        g, A = self._owned_sum(nodal_sum(gap, s.n)), self._owned_sum(nodal_sum(area, s.n))
         p, active = self.enforcement.pressure(g, A)
         return dict(xs=xs, xm=xm, gap=gap, area=area, g=g, A=A, p=p, active=active)
+
+    def _owned_sum(self, values: np.ndarray) -> np.ndarray:
+        """Every rank gets each node's value from the rank that owns the node."""
+        if self.comm.size == 1:
+            return values
+        return self.comm.allreduce(np.where(self.mine, values, 0.0), op=MPI.SUM)
 
     # -- residual and tangent -------------------------------------------------------------
     def _G(self):
@@ -130,8 +143,10 @@ class PairHook:
 
     def state_dict(self) -> dict[str, np.ndarray]:
         """History carried between steps (for checkpoints)."""
-        return {"multiplier": self.enforcement.multiplier.copy(),
-                "nts_segment": self._nts_segment.copy()}
+        seg = self._nts_segment
+        if self.comm.size > 1:
+            seg = self.comm.allreduce(np.where(self.mine, seg + 1, 0), op=MPI.SUM) - 1
+        return {"multiplier": self.enforcement.multiplier.copy(), "nts_segment": seg}
 
     def load_state_dict(self, d: dict[str, np.ndarray]) -> None:
         self.enforcement.multiplier = np.array(d["multiplier"], dtype=float)
@@ -149,7 +164,8 @@ class PairHook:
 
     def record(self) -> dict:
         st = self.state
-        f = -(self._G().T @ st["p"])[: 2 * self.slave.n].reshape(-1, 2).sum(axis=0)
+        f = -(self._G().T @ (st["p"] * self.mine))[: 2 * self.slave.n].reshape(-1, 2).sum(axis=0)
+        f = self.comm.allreduce(f, op=MPI.SUM) if self.comm.size > 1 else f
         on = st["p"] > 0
         return {self.pair.name: {
             "normal_force": float(np.sum(st["p"] * st["A"])),
