@@ -65,6 +65,28 @@ def contact_terms(gap: NodalContributions, area: NodalContributions, enforcement
     return g, A, p, active, R, K
 
 
+def friction_terms(slip: NodalContributions, t: np.ndarray, dt_dg: np.ndarray,
+                   dt_dp: np.ndarray, A: np.ndarray, g: np.ndarray, active: np.ndarray,
+                   G: sp.spmatrix, GA: sp.spmatrix, epsilon: float, n_slave: int,
+                   n_coords: int, weight: np.ndarray, tangent: bool = True):
+    """Tangential terms (friction.py): R_T = Σ_j A_j t_j ∇g_T,j and
+
+        K_T = Σ_j A_j ∂t/∂g_T ∇g_T⊗∇g_T + A_j t_j ∇²g_T + t_j ∇g_T⊗∇A_j
+                  + A_j ∂t/∂p ∇g_T⊗∇p_j ,   ∇p_j = −ε (∇g̃_j/A_j − g̃_j ∇A_j/A_j²)."""
+    GT = gradient_matrix(slip, n_slave, n_coords)
+    R = GT.T @ (A * t * weight)
+    if not tangent:
+        return R, None
+    As = np.where(A > 0, A, 1.0)
+    act = active * weight
+    Gp = -epsilon * (sp.diags(act / As) @ G - sp.diags(act * g / As**2) @ GA)
+    K = (GT.T @ sp.diags(A * dt_dg * weight) @ GT
+         + hessian_sum(slip, A * t * weight, n_slave, n_coords)
+         + GT.T @ sp.diags(t * weight) @ GA
+         + GT.T @ sp.diags(A * dt_dp * weight) @ Gp)
+    return R, K
+
+
 def add_to_vector(b: PETSc.Vec, dofs: np.ndarray, values: np.ndarray) -> None:
     """b[dofs] += values (global dof numbers; off-process entries are communicated)."""
     nz = values != 0.0

@@ -16,7 +16,7 @@ from mpi4py import MPI
 from .. import _dolfinx as dx
 from ..output import write_atomic
 from ..scene import ContactPair, Scene, SceneError
-from . import assembly, mortar, nts
+from . import assembly, friction, mortar, nts
 from .curves import Polyline
 from .enforcement import ENFORCEMENTS
 from .kernel import nodal_sum
@@ -54,6 +54,11 @@ class PairHook:
         self.augmentations = 0
         self._first_jacobian = True
         self._nts_segment = np.full(slave.n, -1, dtype=np.int64)
+        self.friction = None
+        if pair.friction.law == "coulomb":
+            self.friction = friction.CoulombFriction(pair.friction.mu, self.enforcement.epsilon,
+                                                     slave.n)
+            self._fric_seg = np.full(slave.n, -1, dtype=np.int64)
         self.state = None
 
     # -- kinematics ---------------------------------------------------------------------
@@ -77,7 +82,32 @@ class PairHook:
             gap, area = nts.node_gaps(xs, s.seg, xm, m.seg, curve, pairs, self._nts_segment)
         g, A = self._owned_sum(nodal_sum(gap, s.n)), self._owned_sum(nodal_sum(area, s.n))
         p, active = self.enforcement.pressure(g, A)
-        return dict(xs=xs, xm=xm, gap=gap, area=area, g=g, A=A, p=p, active=active)
+        st = dict(xs=xs, xm=xm, gap=gap, area=area, g=g, A=A, p=p, active=active)
+        if self.friction is not None:
+            st.update(self._tangential(xs, xm, curve, pairs, p, active))
+        return st
+
+    def _tangential(self, xs, xm, curve, pairs, p, active) -> dict:
+        """Projections of the slave nodes, slips since their reference points, return map."""
+        s, fr = self.slave, self.friction
+        ps, pm = pairs
+        key = np.unique(np.concatenate([s.seg[ps, 0], s.seg[ps, 1]]) * max(len(self.master.seg), 1)
+                        + np.concatenate([pm, pm]))
+        nodes, segs = nts._closest_segments(xs, xm, key // max(len(self.master.seg), 1),
+                                            key % max(len(self.master.seg), 1), curve,
+                                            self._fric_seg)
+        self._fric_seg[:] = -1
+        self._fric_seg[nodes] = segs
+        P = curve.split_points(curve.local_points(segs, xm))
+        xi = np.asarray(curve.project(segs, (xs[nodes, 0], xs[nodes, 1]), P), dtype=float)
+        fr.anchor_missing(nodes, segs, xi)
+        slip = friction.slip_contributions(xs, xm, curve, nodes, segs, fr.ref_seg[nodes],
+                                           fr.ref_xi[nodes])
+        gT = self._owned_sum(nodal_sum(slip, s.n))
+        t, status, dt_dg, dt_dp = fr.traction(gT, p, active)
+        _, a = curve.evaluate(segs, xi, P)
+        return dict(slip=slip, gT=gT, t=t, status=status, dt_dg=dt_dg, dt_dp=dt_dp,
+                    proj=(nodes, segs, xi, np.hypot(*a)))
 
     def _owned_sum(self, values: np.ndarray) -> np.ndarray:
         """Every rank gets each node's value from the rank that owns the node."""
@@ -92,9 +122,19 @@ class PairHook:
             st["G"] = assembly.gradient_matrix(st["gap"], self.slave.n, self.n_coords)
         return st["G"]
 
+    def _friction_terms(self, tangent: bool):
+        st = self.state
+        return assembly.friction_terms(
+            st["slip"], st["t"], st["dt_dg"], st["dt_dp"], st["A"], st["g"], st["active"],
+            self._G(), assembly.gradient_matrix(st["area"], self.slave.n, self.n_coords),
+            self.enforcement.epsilon, self.slave.n, self.n_coords, self.mine.astype(float),
+            tangent)
+
     def add_residual(self, b, bc_dofs) -> None:
         st = self.state
         f = -(self._G().T @ (st["p"] * self.mine))
+        if self.friction is not None:
+            f = f + self._friction_terms(tangent=False)[0]
         assembly.add_to_vector(b, self.dofs, f)
 
     def add_jacobian(self, A, bc_dofs) -> None:
@@ -111,6 +151,8 @@ class PairHook:
         *_, K = assembly.contact_terms(st["gap"], st["area"], self.enforcement, self.slave.n,
                                        self.n_coords, self.mine.astype(float),
                                        touching=touching)
+        if self.friction is not None:
+            K = K + self._friction_terms(tangent=True)[1]
         assembly.add_to_matrix(A, K, self.dofs, self._skip_dofs(bc_dofs), self.n_global)
 
     def _skip_dofs(self, bc_dofs) -> np.ndarray:
@@ -137,21 +179,39 @@ class PairHook:
 
     def accept_step(self) -> None:
         self.enforcement.accept()
+        if self.friction is not None:
+            st = self.state
+            nodes, segs, xi, length = st["proj"]
+            self.friction.commit(nodes, segs, xi, st["t"][nodes], st["status"][nodes], length)
 
     def reject_step(self) -> None:
         self.enforcement.reject()
+        if self.friction is not None:
+            self.friction.reject()
 
     def state_dict(self) -> dict[str, np.ndarray]:
         """History carried between steps (for checkpoints)."""
         seg = self._nts_segment
         if self.comm.size > 1:
             seg = self.comm.allreduce(np.where(self.mine, seg + 1, 0), op=MPI.SUM) - 1
-        return {"multiplier": self.enforcement.multiplier.copy(), "nts_segment": seg}
+        d = {"multiplier": self.enforcement.multiplier.copy(), "nts_segment": seg}
+        if self.friction is not None:
+            ref_seg, ref_xi = self.friction.ref_seg, self.friction.ref_xi
+            if self.comm.size > 1:
+                ref_seg = self.comm.allreduce(np.where(self.mine, ref_seg + 1, 0), op=MPI.SUM) - 1
+                ref_xi = self.comm.allreduce(np.where(self.mine, ref_xi, 0.0), op=MPI.SUM)
+            d.update(ref_seg=ref_seg, ref_xi=ref_xi)
+        return d
 
     def load_state_dict(self, d: dict[str, np.ndarray]) -> None:
         self.enforcement.multiplier = np.array(d["multiplier"], dtype=float)
         self.enforcement.accept()
         self._nts_segment = np.array(d["nts_segment"], dtype=np.int64)
+        if self.friction is not None:
+            self.friction.ref_seg = np.array(d["ref_seg"], dtype=np.int64)
+            self.friction.ref_xi = np.array(d["ref_xi"], dtype=float)
+            self.friction.reject()  # makes the loaded history the committed one
+            self.friction._committed = (self.friction.ref_seg.copy(), self.friction.ref_xi.copy())
 
     # -- outputs ------------------------------------------------------------------------
     def interface(self) -> dict[str, np.ndarray]:
@@ -159,15 +219,29 @@ class PairHook:
         xs = st["xs"]
         A = st["A"]
         gap = np.where(A > 0, st["g"] / np.where(A > 0, A, 1.0), np.nan)
-        return dict(s=self.slave.arc_length(xs), x=xs[:, 0], y=xs[:, 1], gap=gap,
-                    pressure=st["p"], active=(st["p"] > 0).astype(int))
+        d = dict(s=self.slave.arc_length(xs), x=xs[:, 0], y=xs[:, 1], gap=gap,
+                 pressure=st["p"], active=(st["p"] > 0).astype(int))
+        if self.friction is not None:
+            names = {friction.STICK: "stick", friction.SLIP: "slip", friction.INACTIVE: "inactive"}
+            d.update(t_tangential=st["t"], slip=st["gT"],
+                     status=np.array([names[int(k)] for k in st["status"]]))
+        return d
 
     def record(self) -> dict:
         st = self.state
-        f = -(self._G().T @ (st["p"] * self.mine))[: 2 * self.slave.n].reshape(-1, 2).sum(axis=0)
+        # force the master exerts on the slave body = −(contact residual on slave dofs)
+        f = (self._G().T @ (st["p"] * self.mine))[: 2 * self.slave.n].reshape(-1, 2).sum(axis=0)
         f = self.comm.allreduce(f, op=MPI.SUM) if self.comm.size > 1 else f
         on = st["p"] > 0
-        return {self.pair.name: {
+        extra = {}
+        if self.friction is not None:
+            ft = self._friction_terms(tangent=False)[0][: 2 * self.slave.n].reshape(-1, 2).sum(axis=0)
+            ft = self.comm.allreduce(ft, op=MPI.SUM) if self.comm.size > 1 else ft
+            extra = {"tangential_force_on_slave": [float(-ft[0]), float(-ft[1])],
+                     "tangential_force": float(np.sum(st["t"] * st["A"])),
+                     "stick_nodes": int(np.sum(st["status"] == friction.STICK)),
+                     "slip_nodes": int(np.sum(st["status"] == friction.SLIP))}
+        return {self.pair.name: {**extra,
             "normal_force": float(np.sum(st["p"] * st["A"])),
             "force_on_slave": [float(f[0]), float(f[1])],
             "max_pressure": float(st["p"].max(initial=0.0)),
@@ -181,6 +255,8 @@ class PairHook:
     def write_interface(self, out: Path, step: int) -> None:
         d = self.interface()
         cols = ("s", "x", "y", "gap", "pressure", "active")
+        if self.friction is not None:
+            cols += ("t_tangential", "slip", "status")
         lines = [",".join(cols)]
         for row in zip(*(d[c] for c in cols)):
             lines.append(",".join(f"{v:.12g}" if isinstance(v, float) else str(v) for v in row))
@@ -214,8 +290,6 @@ class PairHook:
 def build_contact(scene: Scene, dom, bulk, timings):
     """One hook per contact pair, and the matrix with their couplings preallocated."""
     for i, c in enumerate(scene.contacts):
-        if c.friction.law != "none":
-            raise SceneError(f"contacts[{i}].friction: Coulomb friction is not implemented yet")
         if c.smoothing != "none":
             raise SceneError(f"contacts[{i}].smoothing = {c.smoothing!r}: only 'none' is "
                              "implemented yet")

@@ -13,11 +13,13 @@ from fenicsx_mortar.meshing import build_domain
 from fenicsx_mortar.solver import NewtonSolver, Timings
 
 
-def system(method: str, enforcement: str):
+def system(method: str, enforcement: str, mu: float = 0.0):
     scene = load_scene(ROOT / "demos/scenes/patch_test.toml")
     scene.mesh.params = {"lower_nx": 8, "lower_ny": 4, "upper_nx": 10, "upper_ny": 2}
     c = scene.contacts[0]
     c.method, c.enforcement.type, c.enforcement.epsilon = method, enforcement, 1e4
+    if mu > 0:
+        c.friction.law, c.friction.mu = "coulomb", mu
     dom = build_domain(scene)
     bulk = build_bulk(scene, dom)
     timings = Timings()
@@ -27,33 +29,28 @@ def system(method: str, enforcement: str):
     return solver, hooks[0]
 
 
-@pytest.mark.parametrize("enforcement", ["penalty", "alm"])
-@pytest.mark.parametrize("method", ["mortar", "nts"])
-def test_taylor_remainder_is_second_order(method, enforcement):
-    solver, hook = system(method, enforcement)
+def upper_block_state(solver, shift: float, rng) -> np.ndarray:
+    """Upper block moved by (shift, −2e-3) plus 1e-5 noise; Dirichlet dofs at zero."""
     X = solver.bulk.V.tabulate_dof_coordinates()[:, :2]
-    rng = np.random.default_rng(7)
-    # upper block shifted sideways (no slave node on a master node: no kink) and pressed
-    # 2e-3 into the lower one; random perturbation 1e-5 keeps the active set fixed below
     V, dom = solver.bulk.V, solver.bulk.domain
-    cells = dom.cells("upper")
-    upper = np.unique(V.dofmap.list.array.reshape(-1, V.dofmap.dof_layout.num_dofs)[cells])
+    upper = np.unique(V.dofmap.list.array.reshape(-1, V.dofmap.dof_layout.num_dofs)[dom.cells("upper")])
     state = np.zeros((len(X), 2))
-    state[upper] = (0.013, -2e-3)
+    state[upper] = (shift, -2e-3)
     state += 1e-5 * rng.standard_normal(state.shape)
     # Dirichlet dofs at their prescribed values (zero here) and not perturbed: the SNES
     # residual's lifting term is consistent with the identity rows only there
     state = state.ravel()
     state[solver.bc_dofs] = 0.0
+    return state
+
+
+def taylor_remainders(solver, hook, rng, check):
     x = solver.x
-    x.array[:] = state
-    if enforcement == "alm":  # a non-zero multiplier, as after an augmentation
-        hook.enforcement.multiplier[:] = rng.uniform(0.5, 1.5, hook.slave.n)
     b = x.duplicate()
     solver._residual(None, x, b)
     R0 = b.array.copy()
-    active = hook.state["active"].copy()
-    assert active.sum() >= 5
+    check(hook.state)
+    frozen = {k: hook.state[k].copy() for k in ("active", "status") if k in hook.state}
     hook._first_jacobian = False
     solver._jacobian(None, x, solver.A, solver.A)
     d = x.duplicate()
@@ -67,8 +64,46 @@ def test_taylor_remainder_is_second_order(method, enforcement):
         xh = x.copy()
         xh.axpy(h, d)
         solver._residual(None, xh, b)
-        assert np.array_equal(hook.state["active"], active)
+        for k, v in frozen.items():  # no switch of the active set or stick/slip state
+            assert np.array_equal(hook.state[k], v)
         rem.append(np.linalg.norm(b.array - R0 - h * Kd.array))
+    return hs, np.array(rem)
+
+
+@pytest.mark.parametrize("enforcement", ["penalty", "alm"])
+@pytest.mark.parametrize("method", ["mortar", "nts"])
+def test_taylor_remainder_is_second_order(method, enforcement):
+    solver, hook = system(method, enforcement)
+    rng = np.random.default_rng(7)
+    # sideways shift: no slave node on a master node (no kink); pressed 2e-3 deep, the 1e-5
+    # perturbations keep the active set fixed
+    solver.x.array[:] = upper_block_state(solver, 0.013, rng)
+    if enforcement == "alm":  # a non-zero multiplier, as after an augmentation
+        hook.enforcement.multiplier[:] = rng.uniform(0.5, 1.5, hook.slave.n)
+    hs, rem = taylor_remainders(solver, hook, rng,
+                                lambda st: st["active"].sum() >= 5 or pytest.fail("few active"))
     rates = np.diff(np.log(rem)) / np.diff(np.log(hs))
-    print(method, enforcement, "remainders", np.array(rem), "rates", rates)
+    assert np.all(rates > 1.8), (rem, rates)
+
+
+@pytest.mark.parametrize("state", ["stick", "slip"])
+@pytest.mark.parametrize("method", ["mortar", "nts"])
+def test_taylor_remainder_with_friction(method, state):
+    """Coulomb μ = 0.3: reference points anchored in the unshifted state, then the upper
+    block slid by 1e-4 (every node sticks: ε_T g_T < μ p) or by 0.013 (every node slips)."""
+    solver, hook = system(method, "alm", mu=0.3)
+    rng = np.random.default_rng(3)
+    x, b = solver.x, solver.x.duplicate()
+    x.array[:] = upper_block_state(solver, 0.0005, rng)
+    solver._residual(None, x, b)  # anchors the reference points here
+    hook.enforcement.multiplier[:] = rng.uniform(0.5, 1.5, hook.slave.n)
+    x.array[:] = upper_block_state(solver, 0.0005 + (1e-4 if state == "stick" else 0.013), rng)
+    want = 1 if state == "stick" else 2
+
+    def check(st):
+        on = st["active"]
+        assert on.sum() >= 5 and np.all(st["status"][on] == want)
+
+    hs, rem = taylor_remainders(solver, hook, rng, check)
+    rates = np.diff(np.log(rem)) / np.diff(np.log(hs))
     assert np.all(rates > 1.8), (rem, rates)

@@ -1,0 +1,99 @@
+"""Coulomb friction with a moving friction cone (DESIGN.md §3, §5).
+
+Per slave node j with its closest-point projection ξ̄_j on master segment s_j (current
+configuration) and a reference point — a material point (segment r_j, ξ_j^ref) of the
+master, carried between load steps:
+
+    g_T,j = (x_j − x_m(r_j, ξ_j^ref)) · t̂(s_j, ξ̄_j)      (tangential slip since the
+                                                             reference, along the master)
+    trial  t*_j = ε_T g_T,j ;   Φ_j = |t*_j| − μ p_j
+    stick (Φ ≤ 0): t_j = t*_j ;   slip (Φ > 0): t_j = μ p_j sign(t*_j)
+
+(p_j ≥ 0 the normal contact pressure). The tangential nodal forces are the variation of
+Σ_j A_j t_j g_T,j at fixed t (A_j the nodal area), R_T = Σ_j A_j t_j ∇g_T,j, with the
+consistent, unsymmetric tangent through ∇g_T, ∇²g_T, ∇A and (slip) ∇p.
+
+Moving cone: after a converged step, a sticking node keeps its reference point; a slipping
+node's reference moves to the point that leaves exactly the elastic part t_j/ε_T of the
+slip, x_ref = x_m(ξ̄_j) − (t_j/ε_T) t̂; a node out of contact re-anchors at its current
+projection, so a node that lifts off and comes back starts from rest.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import ad
+from .ad import Jet2
+from .kernel import NodalContributions
+
+STICK, SLIP, INACTIVE = 1, 2, 0
+
+
+def slip_contributions(xs: np.ndarray, xm: np.ndarray, curve, nodes: np.ndarray,
+                       cur_seg: np.ndarray, ref_seg: np.ndarray, ref_xi: np.ndarray
+                       ) -> NodalContributions:
+    """g_T,j with exact gradient and Hessian over [x_j, current stencil, reference stencil]
+    (S = 1 slave node, 2L curve points), for the given slave ``nodes``."""
+    K = len(nodes)
+    L = curve.stencil_size
+    if K == 0:
+        return NodalContributions.empty(1, 2 * L)
+    Pc = curve.local_points(cur_seg, xm)
+    Pr = curve.local_points(ref_seg, xm)
+    X = np.concatenate([xs[nodes], Pc.reshape(K, 2 * L), Pr.reshape(K, 2 * L)], axis=1)
+    v = Jet2.variables(X)
+    xj = (v[0], v[1])
+    P_cur = [(v[2 + 2 * i], v[3 + 2 * i]) for i in range(L)]
+    P_ref = [(v[2 + 2 * L + 2 * i], v[3 + 2 * L + 2 * i]) for i in range(L)]
+    xi = curve.project(cur_seg, xj, P_cur)
+    _, a = curve.evaluate(cur_seg, xi, P_cur)
+    x_ref, _ = curve.evaluate(ref_seg, ref_xi, P_ref)
+    gT = ad.dot(ad.sub(xj, x_ref), ad.unit(a))
+    masters = np.concatenate([curve.stencil(cur_seg), curve.stencil(ref_seg)], axis=1)
+    return NodalContributions(nodes, nodes[:, None], masters, gT.val, gT.grad, gT.hess)
+
+
+class CoulombFriction:
+    """Return map and per-node history (reference points) for one contact pair."""
+
+    def __init__(self, mu: float, epsilon_t: float, n_slave: int):
+        self.mu, self.epsilon_t = float(mu), float(epsilon_t)
+        self.ref_seg = np.full(n_slave, -1, dtype=np.int64)
+        self.ref_xi = np.zeros(n_slave)
+        self._committed = (self.ref_seg.copy(), self.ref_xi.copy())
+
+    def anchor_missing(self, nodes: np.ndarray, seg: np.ndarray, xi: np.ndarray) -> None:
+        """Nodes without a reference (first contact) take their current projection."""
+        new = self.ref_seg[nodes] < 0
+        self.ref_seg[nodes[new]] = seg[new]
+        self.ref_xi[nodes[new]] = xi[new]
+
+    def traction(self, gT: np.ndarray, p: np.ndarray, active: np.ndarray):
+        """(t, status, dt/dg_T, dt/dp) per node (arrays over the nodes given)."""
+        trial = self.epsilon_t * gT
+        # Φ ≤ 0 sticks, so a node at rest (g_T = 0, p = 0: the first iterate of a body held
+        # only by contact) gets the tangential stiffness instead of none
+        slip = active & (np.abs(trial) - self.mu * p > 0.0)
+        stick = active & ~slip
+        sign = np.sign(trial)
+        t = np.where(stick, trial, np.where(slip, self.mu * p * sign, 0.0))
+        dt_dg = np.where(stick, self.epsilon_t, 0.0)
+        dt_dp = np.where(slip, self.mu * sign, 0.0)
+        status = np.where(stick, STICK, np.where(slip, SLIP, INACTIVE))
+        return t, status, dt_dg, dt_dp
+
+    def commit(self, nodes, seg, xi, t, status, length) -> None:
+        """Moving cone after a converged step (see module docstring). ``length`` is |a| of
+        the current segment, to turn the elastic slip t/ε_T into a parameter offset."""
+        ref_seg, ref_xi = self.ref_seg.copy(), self.ref_xi.copy()
+        slipping = status == SLIP
+        off = status == INACTIVE
+        n = nodes[slipping | off]
+        ref_seg[n] = seg[slipping | off]
+        ref_xi[n] = xi[slipping | off] - np.where(
+            slipping, t / (self.epsilon_t * length), 0.0)[slipping | off]
+        self.ref_seg, self.ref_xi = ref_seg, ref_xi
+        self._committed = (ref_seg.copy(), ref_xi.copy())
+
+    def reject(self) -> None:
+        self.ref_seg, self.ref_xi = (a.copy() for a in self._committed)
