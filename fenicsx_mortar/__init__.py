@@ -4,12 +4,12 @@ Python API: build a :class:`Scene` (or :func:`load_scene` a TOML file) and call
 :func:`solve`. DOLFINx is imported only when solving, so scenes can be built and checked
 without it.
 """
-from .scene import (Body, ContactPair, Dirichlet, Enforcement, Friction, LoadCurve, Material,
+from .scene import (Body, ContactPair, Dirichlet, Enforcement, Friction, LoadCurve, Material, RigidMotion,
                     MeshSource, OutputSettings, Pressure, Scene, SceneError, SolverSettings,
                     Steps, Traction, load_scene)
 
 __all__ = ["Body", "ContactPair", "Dirichlet", "Enforcement", "Friction", "LoadCurve",
-           "Material", "MeshSource", "OutputSettings", "Pressure", "Scene", "SceneError",
+           "Material", "MeshSource", "OutputSettings", "Pressure", "RigidMotion", "Scene", "SceneError",
            "SolverSettings", "Steps", "Traction", "load_scene", "solve"]
 
 

@@ -70,6 +70,12 @@ def dirichletbc(value: fem.Constant, dofs: np.ndarray, V, component: int):
     return fem.dirichletbc(value, dofs, V.sub(component))
 
 
+def dirichletbc_function(g: fem.Function, V, facets: np.ndarray):
+    """Both components on ``facets`` prescribed by the vector Function ``g`` in V."""
+    dofs = fem.locate_dofs_topological(V, V.mesh.topology.dim - 1, facets)
+    return fem.dirichletbc(g, dofs)
+
+
 def locate_vertices(msh: Mesh, marker) -> np.ndarray:
     return dmesh.locate_entities(msh, 0, marker)
 
@@ -218,9 +224,12 @@ class XDMFWriter:
         self._f.close()
 
 
-def measures(msh: Mesh, cell_tags, facet_tags):
-    dx = ufl.Measure("dx", domain=msh, subdomain_data=cell_tags)
-    ds = ufl.Measure("ds", domain=msh, subdomain_data=facet_tags)
+def measures(msh: Mesh, cell_tags, facet_tags, degree: int):
+    """Cell and facet measures with a fixed quadrature degree (UFL's estimate for the
+    Neo-Hooke forms is 10–14, i.e. 36–64 points per quadrilateral)."""
+    md = {"quadrature_degree": degree}
+    dx = ufl.Measure("dx", domain=msh, subdomain_data=cell_tags, metadata=md)
+    ds = ufl.Measure("ds", domain=msh, subdomain_data=facet_tags, metadata=md)
     return dx, ds
 
 

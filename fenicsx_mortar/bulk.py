@@ -38,11 +38,16 @@ class Bulk:
     supports: list[Support]
     laws: dict[str, Law]       # body name → law
     scaled: list[tuple[object, float, object]] = field(default_factory=list)  # (Constant, value, curve)
+    motions: list = field(default_factory=list)  # (Function, RigidMotion, dofs, scene)
 
     def set_time(self, t: float) -> None:
         """Scale every load and prescribed displacement by its curve at pseudo-time t."""
         for const, value, curve in self.scaled:
             const.value = value * curve(t)
+        for g, motion, dofs, scene in self.motions:
+            st = scene.curve(motion.translation_curve)(t)
+            sr = scene.curve(motion.rotation_curve)(t)
+            g.interpolate(lambda X: np.stack(motion.displacement(X, st, sr)))
         for s in self.supports:
             for const, value, curve in s.components.values():
                 const.value = value * curve(t)
@@ -66,7 +71,7 @@ def build_bulk(scene: Scene, dom: Domain) -> Bulk:
     u = dx.Function(V, name="displacement")
     v = ufl.TestFunction(V)
     du = ufl.TrialFunction(V)
-    dxm, ds = dx.measures(msh, dom.cell_tags, dom.facet_tags)
+    dxm, ds = dx.measures(msh, dom.cell_tags, dom.facet_tags, scene.solver.quadrature_degree)
     F = ufl.Identity(2) + ufl.grad(u)
 
     laws: dict[str, Law] = {}
@@ -95,10 +100,10 @@ def build_bulk(scene: Scene, dom: Domain) -> Bulk:
             scaled.append((c, comp, scene.curve(t.curve)))
             G -= c * v[i] * ds(_facet_ids(dom, t.boundary))
 
-    supports, bcs = _supports(scene, dom, V)
+    supports, bcs, motions = _supports(scene, dom, V)
     residual = dx.form(G)
     jacobian = dx.form(ufl.derivative(G, u, du))
-    return Bulk(dom, V, u, residual, jacobian, bcs, supports, laws, scaled)
+    return Bulk(dom, V, u, residual, jacobian, bcs, supports, laws, scaled, motions)
 
 
 def _facet_ids(dom: Domain, names) -> tuple[int, ...]:
@@ -109,8 +114,19 @@ def _facet_ids(dom: Domain, names) -> tuple[int, ...]:
 def _supports(scene: Scene, dom: Domain, V):
     msh = dom.mesh
     comm = msh.comm
-    supports, bcs = [], []
+    supports, bcs, motions = [], [], []
     for i, d in enumerate(scene.dirichlet):
+        label = d.label
+        if any(s.label == label for s in supports):  # keep every support's reactions
+            label = f"{label}#{i}"
+        if d.motion is not None:
+            facets = dom.facets(d.boundary)
+            g = dx.Function(V)
+            bcs.append(dx.dirichletbc_function(g, V, facets))
+            dofs = {c: dx.facet_dofs(V, k, facets) for k, c in enumerate(_COMPONENTS)}
+            motions.append((g, d.motion, dofs, scene))
+            supports.append(Support(label, {}, dofs))
+            continue
         if d.boundary is not None:
             facets = dom.facets(d.boundary)
             dofs = {c: dx.facet_dofs(V, k, facets) for k, c in enumerate(_COMPONENTS)}
@@ -128,11 +144,8 @@ def _supports(scene: Scene, dom: Domain, V):
             const = dx.constant(msh, 0.0)
             comps[c] = (const, value, scene.curve(d.curve))
             bcs.append(dx.dirichletbc(const, dofs[c], V, k))
-        label = d.label
-        if any(s.label == label for s in supports):  # keep every support's reactions
-            label = f"{label}#{i}"
         supports.append(Support(label, comps, {c: dofs[c] for c in comps}))
-    return supports, bcs
+    return supports, bcs, motions
 
 
 def _point_vertices(dom: Domain, point, body: str, scene: Scene) -> np.ndarray:

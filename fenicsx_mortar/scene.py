@@ -74,14 +74,36 @@ RAMP = LoadCurve(t=[0.0, 1.0], value=[0.0, 1.0])
 
 
 @dataclass
+class RigidMotion:
+    """x(X) = c + R(φ) (X + d − c): translation d = ``translation`` × its curve, then a turn
+    φ = ``rotation`` (radians, anticlockwise) × its curve about ``center``."""
+    center: list[float] = field(default_factory=lambda: [0.0, 0.0])
+    translation: list[float] = field(default_factory=lambda: [0.0, 0.0])
+    translation_curve: str = "ramp"
+    rotation: float = 0.0
+    rotation_curve: str = "ramp"
+
+    def displacement(self, X, s_translate: float, s_rotate: float):
+        """u = x(X) − X at arrays X = (x, y) for the given curve values."""
+        c0, c1 = self.center
+        phi = self.rotation * s_rotate
+        px = X[0] + self.translation[0] * s_translate - c0
+        py = X[1] + self.translation[1] * s_translate - c1
+        cos, sin = math.cos(phi), math.sin(phi)
+        return c0 + cos * px - sin * py - X[0], c1 + sin * px + cos * py - X[1]
+
+
+@dataclass
 class Dirichlet:
-    """Prescribed displacement components on a boundary group or at a point of a body."""
+    """Prescribed displacement components on a boundary group or at a point of a body, or
+    a rigid motion of a boundary group (both components)."""
     boundary: str | list[str] | None = None
     point: list[float] | None = None
     body: str | None = None
     x: float | None = None
     y: float | None = None
     curve: str = "ramp"
+    motion: RigidMotion | None = None
     name: str | None = None
 
     @property
@@ -165,6 +187,7 @@ class SolverSettings:
     max_iterations: int = 25
     line_search: Literal["basic", "bt", "l2", "cp"] = "l2"
     linear_solver: Literal["mumps", "superlu_dist", "gmres-hypre"] = "mumps"
+    quadrature_degree: int = 2  # bulk forms: full Gauss integration of P1/Q1 (2x2 on quads)
     petsc: dict[str, bool | int | float | str] = field(default_factory=dict)
 
 
@@ -259,7 +282,17 @@ class Scene:
                 if d.body not in names:
                     raise SceneError(f"{key}.body = {d.body!r}: a point condition names one "
                                      f"of the bodies ({', '.join(names)})")
-            if d.x is None and d.y is None:
+            if d.motion is not None:
+                if d.boundary is None or d.x is not None or d.y is not None:
+                    raise SceneError(f"{key}.motion: a rigid motion moves a whole 'boundary' "
+                                     "(both components); do not give 'x', 'y' or 'point'")
+                m = d.motion
+                if len(m.center) != 2 or len(m.translation) != 2:
+                    raise SceneError(f"{key}.motion: center and translation must be [x, y]")
+                for c in (m.translation_curve, m.rotation_curve):
+                    if c != "ramp" and c not in self.curves:
+                        raise SceneError(f"{key}.motion: no such curve {c!r}")
+            elif d.x is None and d.y is None:
                 raise SceneError(f"{key}: prescribe at least one component ('x' or 'y')")
         for i, t in enumerate(self.tractions):
             if len(t.value) != 2:
@@ -299,6 +332,8 @@ class Scene:
         for k in ("atol", "rtol"):
             if not getattr(sv, k) > 0:
                 raise SceneError(f"solver.{k} must be positive")
+        if sv.quadrature_degree < 1:
+            raise SceneError("solver.quadrature_degree must be >= 1")
         if sv.max_iterations < 1:
             raise SceneError("solver.max_iterations must be >= 1")
         for k in sv.petsc:
