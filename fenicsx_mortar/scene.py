@@ -137,7 +137,7 @@ class Enforcement:
     """Penalty or augmented Lagrangian (Uzawa) enforcement. DESIGN.md §5."""
     type: Literal["penalty", "alm"] = "alm"
     epsilon: float | None = None  # default E/h (slave body); ALM starts at min(epsilon, E/h)
-    tolerance: float = 1e-8       # ALM: KKT residual (relative to the pressure scale)
+    tolerance: float = 1e-10      # ALM: KKT residual (relative to the pressure scale)
     max_augmentations: int = 30
 
 

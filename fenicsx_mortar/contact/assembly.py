@@ -67,7 +67,7 @@ def contact_terms(gap: NodalContributions, area: NodalContributions, enforcement
 
 def friction_terms(slip: NodalContributions, t: np.ndarray, dt_dg: np.ndarray,
                    dt_dp: np.ndarray, A: np.ndarray, g: np.ndarray, active: np.ndarray,
-                   G: sp.spmatrix, GA: sp.spmatrix, epsilon: float, n_slave: int,
+                   G: sp.spmatrix, GA: sp.spmatrix, epsilon: np.ndarray, n_slave: int,
                    n_coords: int, weight: np.ndarray, tangent: bool = True):
     """Tangential terms (friction.py): R_T = Σ_j A_j t_j ∇g_T,j and
 
@@ -79,7 +79,7 @@ def friction_terms(slip: NodalContributions, t: np.ndarray, dt_dg: np.ndarray,
         return R, None
     As = np.where(A > 0, A, 1.0)
     act = active * weight
-    Gp = -epsilon * (sp.diags(act / As) @ G - sp.diags(act * g / As**2) @ GA)
+    Gp = -(sp.diags(epsilon * act / As) @ G - sp.diags(epsilon * act * g / As**2) @ GA)
     K = (GT.T @ sp.diags(A * dt_dg * weight) @ GT
          + hessian_sum(slip, A * t * weight, n_slave, n_coords)
          + GT.T @ sp.diags(t * weight) @ GA

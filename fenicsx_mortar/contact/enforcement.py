@@ -18,7 +18,8 @@ class Enforcement:
     name = ""
 
     def __init__(self, epsilon: float, n_nodes: int, tolerance: float):
-        self.epsilon = float(epsilon)
+        self.epsilon0 = float(epsilon)
+        self.epsilon = np.full(n_nodes, self.epsilon0)  # per node (ALM may raise some)
         self.tolerance = tolerance
         self.multiplier = np.zeros(n_nodes)      # p̂ (zero for penalty)
         self._converged_multiplier = self.multiplier.copy()
@@ -27,7 +28,7 @@ class Enforcement:
         """p̂ − ε g̃/A where the node sees the master, −inf elsewhere."""
         out = np.full(g.shape, -np.inf)
         seen = A > 0
-        out[seen] = self.multiplier[seen] - self.epsilon * g[seen] / A[seen]
+        out[seen] = self.multiplier[seen] - self.epsilon[seen] * g[seen] / A[seen]
         return out
 
     def pressure(self, g: np.ndarray, A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -36,17 +37,18 @@ class Enforcement:
         active = t >= 0.0
         return np.where(active, t, 0.0), active
 
-    def kkt_residual(self, g: np.ndarray, A: np.ndarray) -> float:
-        """max_j |p_j − ⟨p_j − ε g̃_j/A_j⟩₊| / max(p): the Alart–Curnier complementarity
-        function at the current state, relative to the pressure scale; zero iff g ≥ 0,
-        p ≥ 0 and p g = 0 hold at every node that sees the master."""
+    def complementarity(self, g: np.ndarray, A: np.ndarray) -> np.ndarray:
+        """|p_j − ⟨p_j − ε₀ g̃_j/A_j⟩₊| / max(p) per node (0 where the node sees no master):
+        the Alart–Curnier function, relative to the pressure scale; zero iff g ≥ 0, p ≥ 0
+        and p g = 0. Measured with the fixed ε₀, so raising ε does not hide a gap."""
         p, _ = self.pressure(g, A)
         seen = A > 0
-        if not seen.any():
-            return 0.0
-        c = p[seen] - np.maximum(p[seen] - self.epsilon * g[seen] / A[seen], 0.0)
-        scale = max(p.max(), 1e-300)
-        return float(np.abs(c).max() / scale) if p.max() > 0 else float(np.abs(c).max())
+        c = np.zeros_like(g)
+        c[seen] = np.abs(p[seen] - np.maximum(p[seen] - self.epsilon0 * g[seen] / A[seen], 0.0))
+        return c / p.max() if p.max(initial=0.0) > 0 else c
+
+    def kkt_residual(self, g: np.ndarray, A: np.ndarray) -> float:
+        return float(self.complementarity(g, A).max(initial=0.0))
 
     def augment(self, g: np.ndarray, A: np.ndarray) -> bool:
         """Between converged Newton solves; True when another solve is needed."""
@@ -68,36 +70,43 @@ class AugmentedLagrangian(Enforcement):
     """Uzawa: after each converged Newton solve p̂ ← p, until the KKT residual is below
     ``tolerance``; the converged answer does not depend on ε.
 
-    Each update shrinks the constraint error by about k/(k + ε) (k: the local stiffness of
-    the bodies), so a moderate ε keeps the first, hardest Newton solve robust and many
-    updates would follow; when an update gains less than a factor 10, ε grows ×10 (up to
-    100 ε₀, where round-off in the gaps starts to show in the residual): the later solves
-    start next to the answer, where a stiff ε does no harm."""
+    Each update shrinks node j's constraint error by about k_j/(k_j + ε_j A_j) (k_j: the
+    local stiffness of the bodies), so a moderate ε₀ keeps the first, hardest Newton solve
+    robust and many updates would follow. Node by node, when an update gains less than a
+    factor 10, ε_j grows ×10, up to 100 ε₀ max(1, Ā/A_j) (Ā the median nodal area): a node
+    whose support only partly sees the master (a slave sliding past the master's end) has
+    a small A_j and needs the larger ε_j for the same rate, while round-off in ε_j g̃_j
+    stays at the level of the other nodes. The later solves start next to the answer,
+    where a stiff ε does no harm."""
     name = "alm"
     growth, max_growth = 10.0, 100.0
 
     def __init__(self, epsilon: float, n_nodes: int, tolerance: float):
         super().__init__(epsilon, n_nodes, tolerance)
-        self.epsilon0 = self.epsilon
-        self._last_kkt = np.inf
+        self._last = np.full(n_nodes, np.inf)
 
     def augment(self, g: np.ndarray, A: np.ndarray) -> bool:
-        kkt = self.kkt_residual(g, A)
-        if kkt <= self.tolerance:
+        c = self.complementarity(g, A)
+        if c.max(initial=0.0) <= self.tolerance:
             return False
         self.multiplier, _ = self.pressure(g, A)
-        if kkt > 0.1 * self._last_kkt:
-            self.epsilon = min(self.epsilon * self.growth, self.max_growth * self.epsilon0)
-        self._last_kkt = kkt
+        seen = A > 0
+        if seen.any():
+            cap = self.max_growth * self.epsilon0 * np.maximum(
+                1.0, np.median(A[seen]) / np.where(seen, A, np.inf))
+            stall = (c > self.tolerance) & (c > 0.1 * self._last)
+            self.epsilon = np.where(stall, np.minimum(self.epsilon * self.growth, cap),
+                                    self.epsilon)
+        self._last = c
         return True
 
     def accept(self) -> None:
         super().accept()
-        self.epsilon, self._last_kkt = self.epsilon0, np.inf
+        self.epsilon[:], self._last[:] = self.epsilon0, np.inf
 
     def reject(self) -> None:
         super().reject()
-        self.epsilon, self._last_kkt = self.epsilon0, np.inf
+        self.epsilon[:], self._last[:] = self.epsilon0, np.inf
 
 
 ENFORCEMENTS = {c.name: c for c in (Penalty, AugmentedLagrangian)}

@@ -56,7 +56,7 @@ class PairHook:
         self._nts_segment = np.full(slave.n, -1, dtype=np.int64)
         self.friction = None
         if pair.friction.law == "coulomb":
-            self.friction = friction.CoulombFriction(pair.friction.mu, self.enforcement.epsilon,
+            self.friction = friction.CoulombFriction(pair.friction.mu, self.enforcement.epsilon0,
                                                      slave.n)
             self._fric_seg = np.full(slave.n, -1, dtype=np.int64)
         self.state = None
@@ -249,7 +249,8 @@ class PairHook:
             "active_length": float(st["A"][on].sum()),
             "kkt_residual": self.enforcement.kkt_residual(st["g"], st["A"]),
             "augmentations": self.augmentations,
-            "epsilon": self.enforcement.epsilon,
+            "epsilon": self.enforcement.epsilon0,
+            "epsilon_max": float(self.enforcement.epsilon.max(initial=0.0)),
         }}
 
     def write_interface(self, out: Path, step: int) -> None:
