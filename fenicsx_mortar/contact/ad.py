@@ -223,8 +223,8 @@ class Jet2:
             hess = ha + hb if sign > 0 else ha - hb
         else:
             hess = np.zeros((k, k) + val.shape)
-            _place(hess, ha, pa)
-            _place(hess, hb, pb, None if sign > 0 else -1.0)
+            _place(hess, _lift(ha, 2, nd), pa)
+            _place(hess, _lift(hb, 2, nd), pb, None if sign > 0 else -1.0)
         return Jet2._raw(val, grad, hess, u, self._m)
 
     def __add__(self, o) -> "Jet2":

@@ -1,18 +1,34 @@
-"""Master curve geometry (DESIGN.md §3, §6).
+"""Master curve geometry (DESIGN.md §3, §6): the C0 polyline and the smoothed master
+surfaces of the paper's Section 3.
 
-A :class:`MasterCurve` maps (master segment i, ξ ∈ [0, 1]) to a point x(ξ) and tangent
-a = dx/dξ. On segment i the curve depends on the coordinates of a fixed number L of master
-nodes, its *stencil*; all geometric methods take these local coordinates ``P`` as a sequence
-of L points, each a 2-tuple of :class:`~.ad.Jet2` or of float arrays, so one code path
-gives plain values (search, segmentation pre-pass) and exact derivatives (kernels).
+A :class:`MasterCurve` maps (master segment i, ξ ∈ [0, 1]) to a point x(ξ) and its
+ξ-derivatives. On segment i the curve depends on the coordinates of a fixed number L of
+*curve points*, its *stencil*; all geometric methods take these local coordinates ``P`` as
+a sequence of L points, each a 2-tuple of :class:`~.ad.Jet2` or of float arrays, so one
+code path gives plain values (search, segmentation pre-pass, Newton iterations) and exact
+derivatives (kernels).
+
+Curve points and master nodes (``point_map``):
+* local curves (polyline, averaged normals, Hermite): the points ARE the master nodes,
+  ``point_map is None``;
+* the global B-spline: the points are its control points, P = ``point_map`` @ X for both
+  coordinate columns, X (n_nodes, 2) the master node coordinates; ``point_map`` is a
+  scipy.sparse (n_points, n_nodes) matrix, constant for a frozen parametrization (see
+  :class:`BSpline`).
+``stencil``/``local_points`` index points, so the kernels' ``master_nodes`` index points;
+the derivatives with respect to the nodes follow by the chain rule with ``point_map``
+(∂q/∂X = point_mapᵀ ∂q/∂P, per coordinate).
 
 Batch convention: ``seg_index`` is an integer array that broadcasts (numpy rules) against
 the batch shape of ``P``/``xi``/``xs``: shape (k,) for a batch (k,) of segments, (1, k)
 for the mortar Gauss batch (n_gauss, k) where ``P`` has batch (k,).
 
-Only the C0 polyline exists now; smoothed curves (averaged normals, Hermite, B-spline)
-subclass this with their own stencils and override :meth:`MasterCurve.project` (safeguarded
-Newton).
+Implementations (:func:`make_curve` picks one by the scene's ``smoothing`` name):
+* :class:`Polyline` — C0, today's behaviour ("none");
+* :class:`AveragedNormals` — polyline with nodal averaged normals, eqs. 3.2–3.4;
+* :class:`Hermite` — C1 cubic Hermite segments with averaged nodal tangents, eqs. 3.6–3.13;
+* :class:`BSpline` — one global C2 cubic B-spline interpolating the nodes, eqs. 3.16–3.33.
+Projection onto all of them: :mod:`.projection`.
 """
 from __future__ import annotations
 
@@ -20,8 +36,10 @@ import abc
 from typing import Sequence, Tuple
 
 import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
-from . import ad
+from . import ad, projection
 from .ad import Scalar, Vec2
 from .kernel import chain_links
 
@@ -30,26 +48,46 @@ class MasterCurve(abc.ABC):
     """Geometry of the master surface: a map (segment i, ξ∈[0,1]) -> point, built from the
     chain nodes."""
 
-    #: number of master nodes the curve on one segment depends on
+    #: number of curve points the curve on one segment depends on
     stencil_size: int
+    #: the normal field used for the gap is continuous across nodes (no blind wedge at a
+    #: convex corner; NTS measures along the node normal only beyond an open chain's end)
+    continuous_normal: bool = False
+    #: sparse (n_points, n_nodes) map from node to curve-point coordinates; None: identity
+    point_map = None
 
     def __init__(self, x: np.ndarray, seg: np.ndarray):
         self.x = np.asarray(x, dtype=float)
         self.seg = np.asarray(seg, dtype=np.int64).reshape(-1, 2)
-        before, after = chain_links(self.seg, self.x.shape[0])
+        self._before, self._after = chain_links(self.seg, self.x.shape[0])
         #: neighbouring segments along the chain (−1 at the ends of an open chain)
-        self.prev_seg = before[self.seg[:, 0]]
-        self.next_seg = after[self.seg[:, 1]]
+        self.prev_seg = self._before[self.seg[:, 0]]
+        self.next_seg = self._after[self.seg[:, 1]]
+
+    def with_nodes(self, x: np.ndarray) -> "MasterCurve":
+        """The same kind of curve on the same chain with new node coordinates (a frozen
+        parametrization, where the curve has one, is kept)."""
+        return type(self)(x, self.seg)
+
+    def node_segments(self) -> Tuple[np.ndarray, np.ndarray]:
+        """Per node, the segment ending at it and the one starting at it (−1: none)."""
+        return self._before, self._after
 
     # ------------------------------------------------------------------ topology
     @abc.abstractmethod
     def stencil(self, seg_index: np.ndarray) -> np.ndarray:
-        """(k, L) master node indices the curve on these segments depends on."""
+        """(k, L) curve-point indices the curve on these segments depends on."""
+
+    def points(self, x: np.ndarray | None = None) -> np.ndarray:
+        """(n_points, 2) curve-point coordinates from node coordinates ``x`` (default: the
+        curve's own nodes)."""
+        x = self.x if x is None else np.asarray(x, dtype=float)
+        return x if self.point_map is None else self.point_map @ x
 
     def local_points(self, seg_index: np.ndarray, x: np.ndarray | None = None) -> np.ndarray:
-        """(k, L, 2) coordinates of the stencil nodes (from ``x`` or the curve's own nodes)."""
-        x = self.x if x is None else np.asarray(x, dtype=float)
-        return x[self.stencil(np.asarray(seg_index))]
+        """(k, L, 2) coordinates of the stencil points (from node coordinates ``x`` or the
+        curve's own nodes)."""
+        return self.points(x)[self.stencil(np.asarray(seg_index))]
 
     @staticmethod
     def split_points(P: np.ndarray) -> list:
@@ -58,8 +96,14 @@ class MasterCurve(abc.ABC):
 
     # ------------------------------------------------------------------ geometry
     @abc.abstractmethod
+    def derivatives(self, seg_index, xi: Scalar, P: Sequence[Vec2], order: int) -> list:
+        """[x(ξ), x′(ξ), …, x^(order)(ξ)] on the segments, derivatives with respect to ξ
+        (order ≤ 2); beyond [0, 1] the segment's curve piece is extended."""
+
     def evaluate(self, seg_index, xi: Scalar, P: Sequence[Vec2]) -> Tuple[Vec2, Vec2]:
         """Point x(ξ) and tangent a(ξ) = dx/dξ on the segments."""
+        x, a = self.derivatives(seg_index, xi, P, 1)
+        return x, a
 
     @abc.abstractmethod
     def node_points(self, seg_index, P: Sequence[Vec2]) -> Tuple[Vec2, Vec2]:
@@ -69,19 +113,34 @@ class MasterCurve(abc.ABC):
     def node_tangents(self, seg_index, P: Sequence[Vec2]) -> Tuple[Vec2, Vec2]:
         """Tangent *directions* (any positive length) at the segment's start and end node,
         used by the mortar segmentation: the master segment's shadow on the slave ends on
-        the lines through the end nodes perpendicular to these."""
+        the lines through the end nodes perpendicular to these. For the smoothed curves
+        these are the directions whose normal is the curve's normal at the node, so that
+        a point on such a line projects onto the node."""
 
     def normal(self, a: Vec2) -> Vec2:
         """Outward unit normal n = e3 × a/|a| (DESIGN.md §3)."""
         return ad.unit(ad.perp(a))
 
-    def project(self, seg_index, xs: Vec2, P: Sequence[Vec2]) -> Scalar:
-        """ξ̄ of the closest-point projection of xs onto the segment's curve (unclamped).
+    def normal_at(self, seg_index, xi: Scalar, P: Sequence[Vec2], a: Vec2 | None = None) -> Vec2:
+        """Unit normal of the gap field at ξ: the curve normal (closest-point curves);
+        ``a`` = x′(ξ) if already known."""
+        return self.normal(self.derivatives(seg_index, xi, P, 1)[1] if a is None else a)
 
-        General curves need a safeguarded Newton iteration (DESIGN.md §3); subclasses
-        provide it (planned: contact/projection.py).
-        """
-        raise NotImplementedError(f"{type(self).__name__} has no projection yet")
+    def condition(self, seg_index, xi, xs: Vec2, P: Sequence[Vec2], derivative: bool = False):
+        """Projection condition F(ξ), decreasing through the root (and F′ with
+        ``derivative``): closest point, F = (x_s − x)·x′, F′ = −|x′|² + (x_s − x)·x″."""
+        if not derivative:
+            x, a = self.derivatives(seg_index, xi, P, 1)
+            return ad.dot(ad.sub(xs, x), a)
+        x, a, b = self.derivatives(seg_index, xi, P, 2)
+        r = ad.sub(xs, x)
+        return ad.dot(r, a), ad.dot(r, b) - ad.dot(a, a)
+
+    def project(self, seg_index, xs: Vec2, P: Sequence[Vec2]) -> Scalar:
+        """ξ̄ of the projection of xs onto the segment's curve (unclamped; −1 or 2 when the
+        root lies beyond the search window): safeguarded Newton, jets exact to second
+        order (:func:`.projection.project`)."""
+        return projection.project(self, seg_index, xs, P)
 
     def gap(self, seg_index, xs: Vec2, P: Sequence[Vec2]) -> Tuple[Scalar, Scalar]:
         """Normal gap g = (xs − x(ξ̄))·n(ξ̄) at the projection ξ̄ = :meth:`project`, and ξ̄.
@@ -90,20 +149,33 @@ class MasterCurve(abc.ABC):
         values only — it is used for the mortar matrix M, not differentiated.
         """
         xi = self.project(seg_index, xs, P)
-        x_m, a_m = self.evaluate(seg_index, xi, P)
-        return ad.dot(ad.sub(xs, x_m), self.normal(a_m)), xi
+        x_m, a_m = self.derivatives(seg_index, xi, P, 1)
+        return ad.dot(ad.sub(xs, x_m), self.normal_at(seg_index, xi, P, a_m)), xi
 
 
-class Polyline(MasterCurve):
-    """The C0 polyline: x(ξ) = (1−ξ) x_c + ξ x_d, a = x_d − x_c on segment (c, d).
+def _horner_derivatives(C: Sequence[Vec2], xi, order: int) -> list:
+    """[x, x′, …, x^(order)] of the cubic x(ξ) = Σ_r C_r ξ^r (vector coefficients C_r)."""
+    out = []
+    for k in range(order + 1):
+        # d^k/dξ^k: Σ_{r≥k} r!/(r−k)! C_r ξ^{r−k}, evaluated by Horner from the top
+        fall = [1.0, 1.0, 2.0, 6.0]
+        v = ad.scale(C[3], fall[3] / fall[3 - k])
+        for r in range(2, k - 1, -1):
+            v = ad.add(ad.scale(v, xi), ad.scale(C[r], fall[r] / fall[r - k]))
+        out.append(v)
+    return out
 
-    Stencil (prev(c), c, d, next(d)): the curve itself only needs c, d, but the
-    segmentation uses the averaged nodal tangent (DESIGN.md eq. 3.4)
-        t̄_c = t_{prev(c),c} + t_{c,d}   (unit segment tangents; only the direction matters)
+
+# ---------------------------------------------------------------------- local curves
+class _NeighbourStencil(MasterCurve):
+    """Curves whose segment (c, d) depends on (prev(c), c, d, next(d)) — the averaged
+    nodal quantities at c and d need the neighbouring segments.
+
     At the ends of an open chain prev(c) = c (or next(d) = d) is stored in the stencil and
-    t̄ reduces to the segment's own tangent: the missing neighbour is replaced by the ghost
-    node 2x_c − x_d (reflection), whose tangent equals t_{c,d} *as a function of the
-    coordinates*, so the derivatives are right and the repeated slot gets zero derivative.
+    the missing neighbour is replaced by the ghost node 2x_c − x_d (reflection), whose
+    segment tangent equals t_{c,d} *as a function of the coordinates*, so every averaged
+    quantity reduces to the segment's own, the derivatives are right and the repeated slot
+    gets zero derivative.
     """
 
     stencil_size = 4
@@ -116,23 +188,43 @@ class Polyline(MasterCurve):
         q = np.where(ns >= 0, self.seg[ns, 1], d)
         return np.stack([p, c, d, q], axis=1)
 
-    def evaluate(self, seg_index, xi, P):
-        c, d = P[1], P[2]
-        a = ad.sub(d, c)
-        return ad.add(c, ad.scale(a, xi)), a
-
-    def node_points(self, seg_index, P):
-        return P[1], P[2]
-
-    def node_tangents(self, seg_index, P):
+    def _ghosted(self, seg_index, P):
+        """(p, c, d, q) with reflected ghosts for missing neighbours."""
         p, c, d, q = P
         seg_index = np.asarray(seg_index)
         has_p = self.prev_seg[seg_index] >= 0
         has_q = self.next_seg[seg_index] >= 0
         p = (ad.where(has_p, p[0], 2.0 * c[0] - d[0]), ad.where(has_p, p[1], 2.0 * c[1] - d[1]))
         q = (ad.where(has_q, q[0], 2.0 * d[0] - c[0]), ad.where(has_q, q[1], 2.0 * d[1] - c[1]))
+        return p, c, d, q
+
+    def averaged_tangents(self, seg_index, P) -> Tuple[Vec2, Vec2]:
+        """Unnormalized averaged nodal tangents t̄ = t_{i−1} + t_i at c and d (unit segment
+        tangents t, eq. 3.4 before normalization)."""
+        p, c, d, q = self._ghosted(seg_index, P)
         t_cd = ad.unit(ad.sub(d, c))
         return ad.add(ad.unit(ad.sub(c, p)), t_cd), ad.add(t_cd, ad.unit(ad.sub(q, d)))
+
+    def node_points(self, seg_index, P):
+        return P[1], P[2]
+
+
+class Polyline(_NeighbourStencil):
+    """The C0 polyline: x(ξ) = (1−ξ) x_c + ξ x_d, a = x_d − x_c on segment (c, d).
+
+    The segmentation uses the averaged nodal tangent (DESIGN.md eq. 3.4)
+        t̄_c = t_{prev(c),c} + t_{c,d}   (unit segment tangents; only the direction matters),
+    hence the stencil (prev(c), c, d, next(d)).
+    """
+
+    def derivatives(self, seg_index, xi, P, order):
+        c, d = P[1], P[2]
+        a = ad.sub(d, c)
+        out = [ad.add(c, ad.scale(a, xi)), a, (0.0, 0.0)]
+        return out[:order + 1]
+
+    def node_tangents(self, seg_index, P):
+        return self.averaged_tangents(seg_index, P)
 
     def project(self, seg_index, xs, P):
         # closest point on the segment's line, closed form; not clamped (the mortar
@@ -150,3 +242,396 @@ class Polyline(MasterCurve):
         xs_v = (ad.value(xs[0]), ad.value(xs[1]))
         cv, av = (ad.value(c[0]), ad.value(c[1])), (ad.value(a[0]), ad.value(a[1]))
         return g, ad.dot(ad.sub(xs_v, cv), av) / ad.dot(av, av)
+
+
+def _normal_simple(p, c, d):
+    """eq. 3.2: n̄ = (n_{i−1} + n_i)/|n_{i−1} + n_i| (unit segment normals)."""
+    return ad.unit(ad.add(ad.unit(ad.perp(ad.sub(c, p))), ad.unit(ad.perp(ad.sub(d, c)))))
+
+
+def _normal_weighted(p, c, d):
+    """eq. 3.3: n̄ ∝ l_{i−1} n_{i−1} + l_i n_i = e3 × ((x_c − x_p) + (x_d − x_c))."""
+    return ad.unit(ad.add(ad.perp(ad.sub(c, p)), ad.perp(ad.sub(d, c))))
+
+
+def _normal_tangent(p, c, d):
+    """eq. 3.4: ā = (t_{i−1} + t_i)/|t_{i−1} + t_i|, n̄ = e3 × ā."""
+    return ad.perp(ad.unit(ad.add(ad.unit(ad.sub(c, p)), ad.unit(ad.sub(d, c)))))
+
+
+class AveragedNormals(_NeighbourStencil):
+    """Polyline geometry with averaged nodal normals (DESIGN.md §6.1–3, eqs. 3.2–3.4).
+
+    Nodal normal n̄ by ``variant``: "simple" (eq. 3.2, mean of the unit normals),
+    "weighted" (eq. 3.3, weighted by segment length) or "tangent" (eq. 3.4, normal of the
+    mean unit tangent, the paper's choice). In 2D "simple" and "tangent" coincide (the
+    unit normals are the unit tangents turned by 90°); on a polygon inscribed in a circle
+    with arcs Δ_{i−1}, Δ_i at node i their normal deviates from the circle's by
+    (Δ_i − Δ_{i−1})/4, the weighted one by (Δ_i − Δ_{i−1})/2 (both exact on a regular
+    polygon).
+
+    Inside the segment the normal is interpolated and renormalized (a C0 normal field):
+        n̂(ξ) = m(ξ)/|m(ξ)|,   m(ξ) = (1−ξ) n̄_c + ξ n̄_d;
+    the gap is measured along it (DESIGN.md §3): x_s − x(ξ̄) ∥ n̂(ξ̄), i.e.
+        F(ξ) = (x_s − x(ξ)) × m(ξ) = 0   (quadratic in ξ),   g = (x_s − x(ξ̄))·n̂(ξ̄).
+    A point on the line through x_c along n̄_c projects onto ξ = 0 of both adjacent
+    segments: the gap is continuous across nodes (no blind wedge).
+    """
+
+    VARIANTS = {"simple": _normal_simple, "weighted": _normal_weighted,
+                "tangent": _normal_tangent}
+    continuous_normal = True
+
+    def __init__(self, x, seg, variant: str = "tangent"):
+        if variant not in self.VARIANTS:
+            raise ValueError(f"unknown averaged-normal variant {variant!r}; expected one of "
+                             f"{sorted(self.VARIANTS)}")
+        super().__init__(x, seg)
+        self.variant = variant
+        self._node_normal = self.VARIANTS[variant]
+
+    def with_nodes(self, x):
+        return AveragedNormals(x, self.seg, self.variant)
+
+    def node_normals(self, seg_index, P) -> Tuple[Vec2, Vec2]:
+        """Unit averaged normals n̄_c, n̄_d of the variant."""
+        p, c, d, q = self._ghosted(seg_index, P)
+        return self._node_normal(p, c, d), self._node_normal(c, d, q)
+
+    def node_tangents(self, seg_index, P):
+        # the direction a with e3 × a = n̄: a = (n̄_y, −n̄_x)
+        nc, nd = self.node_normals(seg_index, P)
+        return (nc[1], -nc[0]), (nd[1], -nd[0])
+
+    def derivatives(self, seg_index, xi, P, order):
+        return Polyline.derivatives(self, seg_index, xi, P, order)
+
+    def normal_at(self, seg_index, xi, P, a=None):
+        nc, nd = self.node_normals(seg_index, P)
+        return ad.unit(ad.add(nc, ad.scale(ad.sub(nd, nc), xi)))
+
+    def condition(self, seg_index, xi, xs, P, derivative=False):
+        c, d = P[1], P[2]
+        nc, nd = self.node_normals(seg_index, P)
+        a, dn = ad.sub(d, c), ad.sub(nd, nc)
+        r = ad.sub(xs, ad.add(c, ad.scale(a, xi)))
+        m = ad.add(nc, ad.scale(dn, xi))
+        F = ad.cross(r, m)
+        if not derivative:
+            return F
+        return F, ad.cross(r, dn) - ad.cross(a, m)
+
+
+class Hermite(_NeighbourStencil):
+    """C1 cubic Hermite segments with averaged nodal tangents (DESIGN.md §6.4, eqs.
+    3.6–3.13): on segment (c, d) of length l,
+        x̂(ξ) = H₁ x_c + H₂ x_d + H₃ l ā_c + H₄ l ā_d,
+        H₁ = 1 − 3ξ² + 2ξ³, H₂ = 3ξ² − 2ξ³, H₃ = ξ − 2ξ² + ξ³, H₄ = −ξ² + ξ³,
+    ā the unit averaged tangents of eq. 3.4 (at an open chain end the segment's own).
+    x̂′(0) = l ā_c, x̂′(1) = l ā_d: the unit tangent is continuous at the nodes and, in the
+    chord-length parameter s = l ξ, so is dx̂/ds = ā (C1). Projection: closest point
+    (quintic in ξ), safeguarded Newton (:mod:`.projection`).
+    """
+
+    continuous_normal = True
+
+    def derivatives(self, seg_index, xi, P, order):
+        _, c, d = P[0], P[1], P[2]
+        ta, tb = self.averaged_tangents(seg_index, P)
+        e = ad.sub(d, c)
+        l = ad.norm(e)
+        Tc, Td = ad.scale(ad.unit(ta), l), ad.scale(ad.unit(tb), l)
+        # power form x̂ = x_c + ξ T_c + ξ² (3e − 2T_c − T_d) + ξ³ (−2e + T_c + T_d), Horner
+        C2 = ad.sub(ad.sub(ad.scale(e, 3.0), ad.scale(Tc, 2.0)), Td)
+        C3 = ad.add(ad.add(ad.scale(e, -2.0), Tc), Td)
+        return _horner_derivatives([c, Tc, C2, C3], xi, order)
+
+    def node_tangents(self, seg_index, P):
+        return self.averaged_tangents(seg_index, P)
+
+
+# ---------------------------------------------------------------------- B-spline
+def _chains(seg: np.ndarray, n_nodes: int):
+    """The chains of an ordered segment list: [(nodes in order, segments in order, closed)]."""
+    before, after = chain_links(seg, n_nodes)
+    seen = np.zeros(seg.shape[0], dtype=bool)
+    out = []
+    starts = [int(s) for s in range(seg.shape[0]) if before[seg[s, 0]] < 0]
+    starts += list(range(seg.shape[0]))            # closed chains: any unseen segment
+    for s0 in starts:
+        if seen[s0]:
+            continue
+        segs, s = [], s0
+        while s >= 0 and not seen[s]:
+            seen[s] = True
+            segs.append(s)
+            s = after[seg[s, 1]]
+        segs = np.array(segs, dtype=np.int64)
+        closed = seg[segs[-1], 1] == seg[segs[0], 0]
+        nodes = seg[segs, 0] if closed else np.append(seg[segs, 0], seg[segs[-1], 1])
+        out.append((nodes, segs, bool(closed)))
+    return out
+
+
+def span_basis(U: np.ndarray, span: np.ndarray, t0: np.ndarray, p: int) -> np.ndarray:
+    """Power coefficients of the p+1 B-spline basis functions N_{span−p … span, p} that are
+    nonzero on the knot span [U[span], U[span+1]), as polynomials in τ = t − t0:
+    (M, p+1 functions, p+1 powers). Cox–de Boor recursion on polynomials (Piegl & Tiller,
+    eq. 2.5) with 0/0 := 0; t0 may lie outside the span (the span's polynomial is used)."""
+    M = span.shape[0]
+    N = np.zeros((M, 1, p + 1))
+    N[:, 0, 0] = 1.0
+
+    def times_linear(poly, const, slope):    # poly · (const + slope τ)
+        out = poly * const[:, None]
+        out[:, 1:] += slope * poly[:, :-1]
+        return out
+
+    for q in range(1, p + 1):
+        new = np.zeros((M, q + 1, p + 1))
+        for kk in range(q + 1):
+            k = span - q + kk
+            if kk >= 1:      # (t − u_k)/(u_{k+q} − u_k) N_{k,q−1}
+                den = U[k + q] - U[k]
+                f = np.where(den > 0, 1.0 / np.where(den > 0, den, 1.0), 0.0)[:, None]
+                new[:, kk] += f * times_linear(N[:, kk - 1], t0 - U[k], 1.0)
+            if kk <= q - 1:  # (u_{k+q+1} − t)/(u_{k+q+1} − u_{k+1}) N_{k+1,q−1}
+                den = U[k + q + 1] - U[k + 1]
+                f = np.where(den > 0, 1.0 / np.where(den > 0, den, 1.0), 0.0)[:, None]
+                new[:, kk] += f * times_linear(N[:, kk], U[k + q + 1] - t0, -1.0)
+        N = new
+    return N
+
+
+def _sparse_inverse(A: np.ndarray, block: int = 512, drop: float = 1e-17):
+    """Entries (rows, cols, values) of A⁻¹ for the banded (or cyclic banded) interpolation
+    matrix, by a sparse LU and blocks of unit right-hand sides; entries below ``drop``
+    times their column's maximum are left out (the inverse of a B-spline collocation
+    matrix decays geometrically away from the diagonal)."""
+    lu = spla.splu(sp.csc_matrix(A))
+    n = A.shape[0]
+    rows, cols, vals = [], [], []
+    for j0 in range(0, n, block):
+        j1 = min(j0 + block, n)
+        E = np.zeros((n, j1 - j0))
+        E[np.arange(j0, j1), np.arange(j1 - j0)] = 1.0
+        X = lu.solve(E)
+        keep = np.abs(X) > drop * np.abs(X).max(axis=0, keepdims=True)
+        r, c = np.nonzero(keep)
+        rows.append(r)
+        cols.append(c + j0)
+        vals.append(X[r, c])
+    return np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
+
+
+class BSplineParametrization:
+    """Frozen data of a global B-spline on one master chain topology: per chain the degree,
+    parameters ū, knots, and the derived per-segment polynomial tables and point map.
+
+    Built from node coordinates by :meth:`from_nodes` (DESIGN.md §6.5):
+    * chord-length parameters ū₀ = 0, ū_k = ū_{k−1} + |x_k − x_{k−1}|/r, ū_last = 1;
+    * open chain (n+1 nodes, clamped, degree p = min(3, n)): knots u₀ = … = u_p = 0,
+      u_{j+p} = (ū_j + … + ū_{j+p−1})/p for j = 1 … n − p, u_{m−p} = … = u_m = 1
+      (averaging, Piegl & Tiller eq. 9.8); n+1 control points;
+    * closed chain (n nodes, periodic, p = 3): knots at the parameters, extended
+      periodically (u_{k+n} = u_k + 1); n control points, P_{k+n} = P_k (for odd degree the
+      parameters are the centred averages of themselves, and every node sits on a knot: the
+      classical periodic cubic spline, a cyclic tridiagonal interpolation system);
+    * control points from Σ_i B_{i,p}(ū_k) P_i = x_k: P = A⁻¹ X; ``point_map`` holds A⁻¹
+      (entries below 1e-17 of their column's maximum dropped: they decay like
+      0.27^distance).
+    """
+
+    def __init__(self, chains, n_nodes: int):
+        self.chains = chains           # list of dicts (see from_nodes)
+        self.n_nodes = n_nodes
+
+    @classmethod
+    def from_nodes(cls, x: np.ndarray, seg: np.ndarray) -> "BSplineParametrization":
+        chains = []
+        for nodes, segs, closed in _chains(seg, x.shape[0]):
+            pts = x[nodes]
+            loop = np.vstack([pts, pts[:1]]) if closed else pts
+            chord = np.linalg.norm(np.diff(loop, axis=0), axis=1)
+            if np.any(chord <= 0.0):
+                raise ValueError("B-spline: coincident consecutive master nodes")
+            ubar = np.concatenate([[0.0], np.cumsum(chord) / chord.sum()])
+            ubar[-1] = 1.0
+            n = len(chord)                      # segments of the chain
+            if closed:
+                if n < 4:
+                    raise ValueError("periodic B-spline needs a closed chain of >= 4 nodes")
+                p = 3
+                k = np.arange(-p, n + p + 1)
+                U = ubar[k % n] + np.floor_divide(k, n)
+                n_ctrl = n
+            else:
+                p = min(3, n)
+                inner = [ubar[j:j + p].mean() for j in range(1, n - p + 1)]
+                U = np.concatenate([np.zeros(p + 1), inner, np.ones(p + 1)])
+                n_ctrl = n + 1
+            chains.append(dict(nodes=nodes, segs=segs, closed=closed, p=p, ubar=ubar, U=U,
+                               n_ctrl=n_ctrl))
+        self = cls(chains, x.shape[0])
+        self._tables(seg.shape[0])
+        return self
+
+    def _span(self, ch, t, right: bool) -> np.ndarray:
+        """Knot span index m of parameters t (U[m] ≤ t < U[m+1]; with ``right`` False the
+        span whose open interval ends at t, U[m] < t ≤ U[m+1])."""
+        U, p = ch["U"], ch["p"]
+        if ch["closed"]:
+            first, last = p, len(U) - p - 2
+        else:
+            first, last = p, ch["n_ctrl"] - 1
+        m = np.searchsorted(U, t, side="right" if right else "left") - 1
+        return np.clip(m, first, last)
+
+    def _ctrl(self, ch, ext):
+        return ext % ch["n_ctrl"] if ch["closed"] else ext
+
+    def _tables(self, n_seg: int) -> None:
+        """Per segment: interior break points (ξ, +inf padded) and, per piece, the slot
+        weights as polynomials in ξ: W (n_seg, 3, 6, 4) with x(ξ) = Σ_s Σ_r W[s, r] ξ^r P_s;
+        the stencil (n_seg, 6) of global point indices; the point map."""
+        L = 6
+        self.breaks = np.full((n_seg, 2), np.inf)
+        self.W = np.zeros((n_seg, 3, L, 4))
+        self.stencil = np.zeros((n_seg, L), dtype=np.int64)
+        rows, cols, vals = [], [], []
+        offset = 0
+        for ch in self.chains:
+            U, p, ubar, segs = ch["U"], ch["p"], ch["ubar"], ch["segs"]
+            n = len(segs)
+            t_lo, t_hi = ubar[:-1], ubar[1:]
+            m_lo = self._span(ch, t_lo, True)
+            m_hi = self._span(ch, t_hi, False)
+            if np.any(m_hi - m_lo > 2):
+                raise AssertionError("B-spline: a data interval spans more than 3 knot spans")
+            du = t_hi - t_lo
+            first = m_lo - p                                   # first extended control index
+            for piece in range(3):
+                m = np.minimum(m_lo + piece, m_hi)
+                real = m_lo + piece <= m_hi
+                if piece > 0:
+                    self.breaks[segs[real], piece - 1] = ((U[m] - t_lo) / du)[real]
+                C = span_basis(U, m, t_lo, p)                 # powers of τ = t − ū_i
+                C = C * du[:, None, None] ** np.arange(p + 1)  # powers of ξ
+                for kk in range(p + 1):
+                    slot = m - p + kk - first
+                    self.W[segs, piece, slot, :p + 1] = np.where(real[:, None], C[:, kk], 0.0)
+            for s in range(L):
+                ext = np.minimum(first + s, m_hi)              # pad: repeat the last point
+                self.stencil[segs, s] = offset + self._ctrl(ch, ext)
+            # interpolation matrix A[k, i] = B_i(ū_k) at the data parameters
+            nd = len(ch["nodes"])
+            tk = ubar[:nd]
+            mk = self._span(ch, tk, True)
+            Bk = span_basis(U, mk, tk, p)[:, :, 0]            # values at τ = 0
+            A = np.zeros((nd, ch["n_ctrl"]))
+            for kk in range(p + 1):
+                np.add.at(A, (np.arange(nd), self._ctrl(ch, mk - p + kk)), Bk[:, kk])
+            r, c, v = _sparse_inverse(A)
+            rows.append(offset + r)
+            cols.append(ch["nodes"][c])
+            vals.append(v)
+            ch["A"] = A
+            ch["offset"] = offset
+            offset += ch["n_ctrl"]
+        self.n_points = offset
+        self.point_map = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows),
+                                        np.concatenate(cols))),
+                                       shape=(self.n_points, self.n_nodes))
+
+
+class BSpline(MasterCurve):
+    """One global cubic B-spline per master chain, interpolating all its nodes (C2;
+    DESIGN.md §6.5, eqs. 3.16–3.33): clamped for an open chain, periodic for a closed one.
+
+    The curve is parametrized per master segment by the local ξ of eq. 3.33,
+        t = ū_i + ξ (ū_{i+1} − ū_i)   on segment i (the data interval [ū_i, ū_{i+1}]),
+    so x(ξ) is piecewise cubic with break points where knots fall inside the interval (at
+    most two: stencil of L = 6 control points; unused slots repeat a point with zero
+    weight); x′ = dx/dξ. Closest-point projection (Newton on f(t) = (x_s − x)·x′, here in
+    ξ, which has the same roots) with hand-over between segments (:mod:`.projection`).
+
+    Parametrization and linearization. The parameters ū and knots (and with them the
+    interpolation matrix A and ``point_map`` = A⁻¹) are a :class:`BSplineParametrization`
+    that is *frozen*: a curve built with ``parametrization=`` (or by :meth:`with_nodes`)
+    reuses it, the control points P = A⁻¹ X are then linear in the node coordinates X and
+    the kernels' derivatives (taken with respect to P, mapped to X by ``point_map``) are
+    exact. Rebuilding the parametrization from moved nodes changes ū (chord lengths) and
+    therefore the curve between the nodes by O(|ΔX|); the tangent does not contain that
+    term. Intended use: build once per load step (or once per Newton solve) and call
+    :meth:`with_nodes` at every iterate — the interpolation condition x(ū_k) = x_k holds
+    for any X, only the parametrization stops being exactly chord-length.
+    """
+
+    stencil_size = 6
+    continuous_normal = True
+
+    def __init__(self, x, seg, parametrization: BSplineParametrization | None = None):
+        super().__init__(x, seg)
+        if parametrization is None:
+            parametrization = BSplineParametrization.from_nodes(self.x, self.seg)
+        self.parametrization = parametrization
+        self.point_map = parametrization.point_map
+        # (24, n_seg·3): row 4s + r = weight of slot s, power r; column 3·segment + piece
+        W = parametrization.W
+        self._WT = np.ascontiguousarray(W.reshape(W.shape[0] * 3, 24).T)
+        self._W = W
+        self._breaks = parametrization.breaks
+        self._stencil = parametrization.stencil
+
+    def with_nodes(self, x):
+        return BSpline(x, self.seg, self.parametrization)
+
+    @property
+    def control_points(self) -> np.ndarray:
+        return self.points()
+
+    def stencil(self, seg_index):
+        return self._stencil[np.asarray(seg_index, dtype=np.int64)]
+
+    def derivatives(self, seg_index, xi, P, order):
+        seg = np.asarray(seg_index, dtype=np.int64)
+        xv = ad.value(xi)
+        piece = (xv >= self._breaks[seg, 0]).astype(np.int64) + (xv >= self._breaks[seg, 1])
+        W = self._WT[:, 3 * seg + piece]                        # (24, *B), contiguous rows
+        # power coefficients C_r = Σ_s W_sr P_s (linear in P: cheap jets), then Horner
+        C = []
+        for r in range(4):
+            v = None
+            for sl in range(self.stencil_size):
+                t = ad.scale(P[sl], W[4 * sl + r])
+                v = t if v is None else ad.add(v, t)
+            C.append(v)
+        return _horner_derivatives(C, xi, order)
+
+    def node_points(self, seg_index, P):
+        z = np.zeros(np.shape(seg_index))
+        return (self.derivatives(seg_index, z, P, 0)[0],
+                self.derivatives(seg_index, z + 1.0, P, 0)[0])
+
+    def node_tangents(self, seg_index, P):
+        z = np.zeros(np.shape(seg_index))
+        return (self.derivatives(seg_index, z, P, 1)[1],
+                self.derivatives(seg_index, z + 1.0, P, 1)[1])
+
+
+# ---------------------------------------------------------------------- factory
+SMOOTHINGS = ("none", "averaged-simple", "averaged-weighted", "averaged-tangent",
+              "hermite", "bspline")
+
+
+def make_curve(smoothing: str, x: np.ndarray, seg: np.ndarray) -> MasterCurve:
+    """The master curve of a contact pair's ``smoothing`` (scene names, DESIGN.md §6)."""
+    if smoothing == "none":
+        return Polyline(x, seg)
+    if smoothing.startswith("averaged-") and smoothing in SMOOTHINGS:
+        return AveragedNormals(x, seg, smoothing[len("averaged-"):])
+    if smoothing == "hermite":
+        return Hermite(x, seg)
+    if smoothing == "bspline":
+        return BSpline(x, seg)
+    raise ValueError(f"unknown smoothing {smoothing!r}; expected one of {', '.join(SMOOTHINGS)}")

@@ -7,8 +7,13 @@ q at slave node ``node[k]``, and depends on the local coordinates
     [x_{s_0}, y_{s_0}, …, x_{s_{S-1}}, y_{s_{S-1}}, x_{m_0}, y_{m_0}, …, x_{m_{L-1}}, y_{m_{L-1}}]
 
 with s = ``slave_nodes[k]`` (indices into the slave chain) and m = ``master_nodes[k]``
-(indices into the master chain); ``grad[k]`` and ``hess[k]`` are the exact first and second
-derivatives with respect to these m = 2(S + L) coordinates. A node index may appear twice
+(indices of the master curve's *points*: the master nodes for the local curves, whose
+``point_map`` is None; the control points P = point_map @ X of the global B-spline, see
+:mod:`.curves`); ``grad[k]`` and ``hess[k]`` are the exact first and second derivatives
+with respect to these m = 2(S + L) coordinates. With a point map the derivatives with
+respect to the master nodes follow by the chain rule, ∂q/∂X = point_mapᵀ ∂q/∂P per
+coordinate (and point_mapᵀ H point_map for Hessian blocks); this mapping is the
+assembly's job. A node index may appear twice
 in one row (chain ends, repeated stencil entries); the derivative belonging to each slot is
 then to be *added* into the global vector/matrix, which is what scatter-add assembly does.
 """
@@ -27,7 +32,7 @@ class NodalContributions:
 
     node: np.ndarray          # (K,) slave node index (into the slave chain)
     slave_nodes: np.ndarray   # (K, S) slave node indices of the local variables (first 2S coords)
-    master_nodes: np.ndarray  # (K, L) master node indices (next 2L local coords)
+    master_nodes: np.ndarray  # (K, L) master curve-point indices (next 2L local coords)
     value: np.ndarray         # (K,)
     grad: np.ndarray          # (K, m)   m = 2*(S+L), order [xs0, ys0, xs1, ys1, .., xm0, ym0, ..]
     hess: np.ndarray          # (K, m, m)

@@ -15,10 +15,14 @@ For a candidate pair (slave segment s = [x_a, x_b], master segment m = [x_c, x_d
    Pairs whose slave and master do not face each other, (x_b − x_a)·t̄ ≥ 0 at either master
    node (outward normals less than 90° apart), are dropped too: they are no contact
    configuration (e.g. the back side of a closed master) and would divide by ~0.
-2. Gauss–Legendre points ζ_g on [ζ_lo, ζ_hi]; closest-point projection ξ_g of x_s(ζ_g)
-   onto the master segment's curve (:meth:`MasterCurve.project`; closed form for the
-   polyline); gap g = (x_s − x_m(ξ))·n_m(ξ), n_m = e3 × a/|a|
-   (:meth:`MasterCurve.gap`).
+2. Gauss–Legendre points ζ_g on [ζ_lo, ζ_hi]; projection ξ_g of x_s(ζ_g) onto the master
+   segment's curve (:meth:`MasterCurve.project`: closed form for the polyline, the
+   safeguarded Newton of :mod:`.projection` with exact jet derivatives for the smoothed
+   curves — closest point, or along the smoothed normal for averaged normals); gap
+   g = (x_s − x_m(ξ))·n_m(ξ) (:meth:`MasterCurve.gap`; n_m = e3 × a/|a|, or the
+   interpolated averaged normal). With the smoothed curves the node tangents are the
+   curve's, so a Gauss point in the shadow of a segment projects into ξ ∈ [0, 1] of it
+   (up to the gap-over-radius approximation of the segmentation).
 3. With dΓ = |x_b − x_a| dζ (current configuration), for j ∈ {a, b}:
        g̃_j += ∫ N_j g dΓ,   A_j += ∫ N_j dΓ   over [ζ_lo, ζ_hi].
    The nodal area A_j counts only the part of the slave segment that has a master. That is
@@ -30,7 +34,8 @@ For a candidate pair (slave segment s = [x_a, x_b], master segment m = [x_c, x_d
    master's linear shape functions N̂ = (1−ξ, ξ) on the segment's nodes (c, d).
 
 All of g̃_j and A_j is computed with :class:`~.ad.Jet2` over the pair's local coordinates
-[x_a, y_a, x_b, y_b, then the L stencil nodes of the master segment], vectorized over
+[x_a, y_a, x_b, y_b, then the L stencil points of the master segment (nodes, or the
+B-spline's control points)], vectorized over
 pairs and Gauss points (batch (n_gauss, n_pairs), in blocks of pairs). The Gauss-point
 integrand is differentiated with ζ_lo, ζ_hi as extra independent variables and their
 dependence on the coordinates is applied afterwards by the chain rule (exact, cheaper).

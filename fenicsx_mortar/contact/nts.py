@@ -7,13 +7,16 @@ For each slave node j:
   a node that projects onto no segment (beyond the master's ends, or into the blind
   wedge outside a convex master corner) gets no contribution; no facing test is made
   (the smallest |g| already prefers the near side of a closed master);
-* point gap g_j = (x_j − x_m(ξ̄))·n_m(ξ̄);
+* point gap g_j = (x_j − x_m(ξ̄))·n_m(ξ̄) (:meth:`MasterCurve.gap`: with averaged
+  normals ξ̄ is the projection along the smoothed normal and n_m the smoothed normal; for
+  the Hermite and B-spline curves the closest point, with exact derivatives of ξ̄);
 * nodal area A_j = ½(|x_j − x_{j−1}| + |x_{j+1} − x_j|) (adjacent slave segments, current
   configuration); at a chain end the missing neighbour contributes 0;
 * weighted gap g̃_j = A_j g_j, so that g̃_j / A_j = g_j and the same enforcement code
   (DESIGN.md §5) serves mortar and NTS.
 
-Local coordinates of contribution j (S = 3 slave nodes, then the L master stencil nodes):
+Local coordinates of contribution j (S = 3 slave nodes, then the L master stencil points —
+master nodes, or the B-spline's control points, see :mod:`.curves` ``point_map``):
     [x_{j−1}, y_{j−1}, x_j, y_j, x_{j+1}, y_{j+1}, x_{m0}, y_{m0}, …]
 At a chain end the missing neighbour's slot holds j itself; its area term is switched off
 by ``where`` on a finite ghost, so that slot has exactly zero derivative and the
@@ -45,9 +48,8 @@ def _closest_segments(slave_x, master_x, nodes, segs, curve, previous=None):
     between Newton iterations makes the residual jump (Newton then cycles)."""
     P = curve.split_points(curve.local_points(segs, master_x))
     xj = (slave_x[nodes, 0], slave_x[nodes, 1])
-    xi = curve.project(segs, xj, P)
-    x_m, a_m = curve.evaluate(segs, xi, P)
-    g = ad.dot(ad.sub(xj, x_m), curve.normal(a_m))
+    g, xi = curve.gap(segs, xj, P)
+    g, xi = ad.value(g), ad.value(xi)
     ok = (xi >= 0.0) & (xi <= 1.0)
     kept = np.zeros_like(ok)
     if previous is not None:
@@ -121,17 +123,22 @@ def node_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarray,
     l_q = ad.where(has_q, ad.norm(ad.sub(ghost_q, xj)), 0.0)
     A = (l_p + l_q) * 0.5
 
-    xi = curve.project(segs, xj, P)
-    x_m, a_m = curve.evaluate(segs, xi, P)
-    g = ad.dot(ad.sub(xj, x_m), curve.normal(a_m))
+    g, xi = curve.gap(segs, xj, P)
     # A node that projects onto a master node (within NODE_TOL) measures its gap along the
     # averaged normal there: the segment normals jump at the node, and with either one
     # alone a slave node sitting on a master node has no equilibrium (Newton cycles).
-    xc, xd = curve.node_points(segs, P)
-    tc, td = curve.node_tangents(segs, P)
-    at_c = ad.value(xi) <= NODE_TOL          # on the node, or in the wedge beyond it
-    at_d = ad.value(xi) >= 1.0 - NODE_TOL
+    # Curves with a normal field continuous across nodes (smoothed curves: the node
+    # tangent is the curve's tangent there) need this only beyond an open chain's end.
+    xiv = ad.value(xi)
+    if curve.continuous_normal:
+        at_c = (xiv < 0.0) & (curve.prev_seg[segs] < 0)
+        at_d = (xiv > 1.0) & (curve.next_seg[segs] < 0)
+    else:
+        at_c = xiv <= NODE_TOL               # on the node, or in the wedge beyond it
+        at_d = xiv >= 1.0 - NODE_TOL
     if at_c.any() or at_d.any():
+        xc, xd = curve.node_points(segs, P)
+        tc, td = curve.node_tangents(segs, P)
         g_c = ad.dot(ad.sub(xj, xc), curve.normal(tc))
         g_d = ad.dot(ad.sub(xj, xd), curve.normal(td))
         g = ad.where(at_c, g_c, ad.where(at_d, g_d, g))

@@ -177,7 +177,8 @@ def closest_point(curve, points: np.ndarray, n_starts: int = 2,
     before, after = curve.node_segments()
     used = np.unique(curve.seg)
     _, near = cKDTree(curve.x[used]).query(pts, k=min(n_starts, used.shape[0]))
-    near = used[np.asarray(near).reshape(n, -1)]
+    near = np.asarray(near).reshape(n, -1)
+    near = used[np.where(near < used.shape[0], near, 0)]      # (non-finite points: any)
     starts = np.concatenate([before[near], after[near]], axis=1)          # (n, 2 n_starts)
     starts = np.where(starts >= 0, starts, np.concatenate([after[near], before[near]], 1))
     owner = np.repeat(np.arange(n), starts.shape[1])

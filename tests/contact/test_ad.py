@@ -157,3 +157,22 @@ def test_substitute_is_the_chain_rule():
     assert np.allclose(composed.val, direct.val, atol=1e-15)
     assert np.allclose(composed.grad, direct.grad, atol=1e-14)
     assert np.allclose(composed.hess, direct.hess, atol=1e-13)
+
+
+def test_sum_of_jets_with_different_supports_and_batch_ranks():
+    # a Hessian-carrying jet of batch (k,) plus one of batch (n, k) with another support
+    # (the projection's jets meet the Gauss batch): the Hessians must be lifted, not
+    # broadcast against the support axes
+    rng = np.random.default_rng(9)
+    x = rng.uniform(0.5, 1.5, size=(3, 4))
+    s = np.array([[0.2], [0.7]])
+    v = Jet2.variables(x)
+    a = v[0] * v[1]                                   # (3,), support {0, 1}
+    b = v[2] * v[3] * s                               # (2, 3), support {2, 3}
+    c = a + b
+    w = Jet2.variables(np.broadcast_to(x, (2, 3, 4)))
+    ref = w[0] * w[1] + w[2] * w[3] * s
+    assert c.shape == (2, 3)
+    assert np.allclose(c.grad, ref.grad) and np.allclose(c.hess, ref.hess)
+    d = b - a
+    assert np.allclose(d.hess, (w[2] * w[3] * s - w[0] * w[1]).hess)

@@ -174,3 +174,46 @@ def test_nts_fails_the_patch_test():
     assert np.allclose(fm[:, 0], 0.0, atol=1e-15)
     deviation = np.abs(fm[:, 1] - consistent).max() / np.abs(consistent).max()
     assert deviation > 1e-3                                        # ... but not consistent
+
+
+# ---------------------------------------------------------------- smoothed master curves
+from fenicsx_mortar.contact.curves import SMOOTHINGS, make_curve  # noqa: E402
+from test_mortar import smoothed_taylor_check  # noqa: E402
+
+
+@pytest.mark.parametrize("smoothing", SMOOTHINGS)
+@pytest.mark.parametrize("config", [curved_open, closed_master])
+def test_taylor_smoothed_master(config, smoothing):
+    xs, ss, xm, sm = config()
+
+    def kernel(curve, xs, xm):
+        return nts.node_gaps(xs, ss, xm, sm, curve, candidate_pairs(xs, ss, xm, sm, 0.3))
+    assert smoothed_taylor_check(kernel, xs, ss, xm, sm, smoothing) > 5
+
+
+@pytest.mark.parametrize("smoothing", SMOOTHINGS)
+def test_flat_point_gap_with_smoothing(smoothing):
+    delta = 0.037
+    xs, ss, xm, sm = flat(delta, slave_from=4.6, slave_to=0.6)
+    curve = make_curve(smoothing, xm, sm)
+    gap, area = nts.node_gaps(xs, ss, xm, sm, curve, candidate_pairs(xs, ss, xm, sm, 0.3))
+    assert set(gap.node.tolist()) == set(np.flatnonzero(xs[:, 0] <= 4.0).tolist())
+    assert np.allclose(gap.value / area.value, delta, rtol=0, atol=1e-14)
+
+
+@pytest.mark.parametrize("smoothing", ["hermite", "bspline", "averaged-tangent"])
+def test_smooth_gap_continuous_across_master_nodes(smoothing):
+    # a slave node moved across a master node: with a smoothed master the point gap is
+    # continuous (no jump between the adjacent segments' gaps)
+    xs, ss, xm, sm = closed_master()
+    curve = make_curve(smoothing, xm, sm)
+    k = 3
+    nrm = xm[k] / np.linalg.norm(xm[k])
+    tan = np.array([-nrm[1], nrm[0]])
+    gaps = []
+    for s in np.linspace(-1e-7, 1e-7, 5):
+        x1 = np.array([xm[k] + 0.05 * nrm + s * tan, xm[k] + 0.05 * nrm + (s + 0.01) * tan])
+        gap, area = nts.node_gaps(x1, np.array([[0, 1]]), xm, sm, curve,
+                                  candidate_pairs(x1, np.array([[0, 1]]), xm, sm, 0.3))
+        gaps.append((gap.value / area.value)[gap.node == 0][0])
+    assert np.ptp(gaps) < 1e-8

@@ -1,0 +1,106 @@
+"""Gap accuracy of the master-surface smoothings (DESIGN.md §6; issue: smoothed master
+surfaces). Regenerates docs/smoothing.md and docs/smoothing_gap_error.png.
+
+A circle of radius R is the exact master surface; the discrete master is the closed
+polygon of n nodes on it (clockwise, so that n = e3 × t points outward). Slave points lie
+at a known signed distance ±d from the circle (outside: gap +d, inside: gap −d) at random
+angles. Each smoothing computes the gap as the contact kernels do — the projection onto
+the curve (closest point, or along the smoothed normal for the averaged-normal variants),
+then g = (x_s − x(ξ̄))·n(ξ̄) on that segment — and its error against the exact gap is
+reported (maximum over all points), for n = 8, 16, 32, 64.
+
+    .venv/bin/python benchmarks/gap_accuracy.py
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from fenicsx_mortar.contact import projection  # noqa: E402
+from fenicsx_mortar.contact.curves import SMOOTHINGS, make_curve  # noqa: E402
+
+R = 1.0
+D = 0.02 * R                    # distance of the slave points from the circle
+NS = [8, 16, 32, 64]
+N_POINTS = 4000
+
+
+def polygon(n: int, rotation: float = 0.1):
+    phi = rotation - 2 * np.pi * np.arange(n) / n            # clockwise
+    x = R * np.c_[np.cos(phi), np.sin(phi)]
+    seg = np.stack([np.arange(n), np.roll(np.arange(n), -1)], axis=1)
+    return x, seg
+
+
+def slave_points(rng):
+    theta = rng.uniform(0.0, 2 * np.pi, N_POINTS)
+    sign = np.where(np.arange(N_POINTS) % 2 == 0, 1.0, -1.0)  # outside / inside
+    r = R + sign * D
+    return np.c_[r * np.cos(theta), r * np.sin(theta)], sign * D
+
+
+def gap_errors(smoothing: str, n: int, pts, exact):
+    x, seg = polygon(n)
+    curve = make_curve(smoothing, x, seg)
+    cp = projection.closest_point(curve, pts)
+    if not cp.ok.all():
+        raise RuntimeError(f"{smoothing}, n = {n}: {np.count_nonzero(~cp.ok)} projections failed")
+    P = curve.split_points(curve.local_points(cp.seg))
+    g, _ = curve.gap(cp.seg, (pts[:, 0], pts[:, 1]), P)
+    return np.abs(np.asarray(g) - exact)
+
+
+def main() -> None:
+    rng = np.random.default_rng(0)
+    pts, exact = slave_points(rng)
+    err = {s: np.array([gap_errors(s, n, pts, exact).max() for n in NS]) for s in SMOOTHINGS}
+    h = 2 * R * np.sin(np.pi / np.array(NS))                 # segment length
+    orders = {s: np.log(e[:-1] / e[1:]) / np.log(h[:-1] / h[1:]) for s, e in err.items()}
+
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import matplotlib.ticker
+    fig, ax = plt.subplots(figsize=(6.4, 4.6))
+    styles = {"none": "k-o", "averaged-simple": "C0--s", "averaged-weighted": "C1:^",
+              "averaged-tangent": "C2-.v", "hermite": "C3-D", "bspline": "C4-P"}
+    for s in SMOOTHINGS:
+        ax.loglog(NS, err[s], styles[s], label=s, ms=5)
+    for p, y0 in ((2, err["none"][0]), (4, err["bspline"][0])):
+        ax.loglog(NS, y0 * (NS[0] / np.array(NS)) ** p, color="0.6", lw=0.8)
+        ax.text(NS[-1] * 1.08, y0 * (NS[0] / NS[-1]) ** p, f"O(h$^{p}$)", color="0.4",
+                va="center")
+    ax.set_xlabel("nodes on the circle n  (h = 2R sin(π/n))")
+    ax.set_ylabel("max |g − g_exact|")
+    ax.set_title(f"Gap error against the exact circle (R = {R:g}, |gap| = {D:g})")
+    ax.set_xticks(NS, [str(n) for n in NS])
+    ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+    ax.set_xlim(NS[0] / 1.2, NS[-1] * 1.6)
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    png = ROOT / "docs" / "smoothing_gap_error.png"
+    fig.savefig(png, dpi=120)
+    plt.close(fig)
+
+    rows = ["| smoothing | " + " | ".join(f"n = {n}" for n in NS) + " | observed order |",
+            "|---|" + "---|" * len(NS) + "---|"]
+    for s in SMOOTHINGS:
+        rows.append(f"| {s} | " + " | ".join(f"{e:.2e}" for e in err[s])
+                    + " | " + ", ".join(f"{o:.2f}" for o in orders[s]) + " |")
+    table = "\n".join(rows)
+    print(table)
+    md = ROOT / "docs" / "smoothing.md"
+    text = md.read_text()
+    start, end = "<!-- gap-table -->", "<!-- /gap-table -->"
+    i, j = text.index(start) + len(start), text.index(end)
+    md.write_text(text[:i] + "\n" + table + "\n" + text[j:])
+
+
+if __name__ == "__main__":
+    main()
