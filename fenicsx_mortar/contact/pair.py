@@ -17,7 +17,7 @@ from .. import _dolfinx as dx
 from ..output import write_atomic
 from ..scene import ContactPair, Scene, SceneError
 from . import assembly, friction, mortar, nts
-from .curves import Polyline
+from .curves import make_curve
 from .enforcement import ENFORCEMENTS
 from .kernel import nodal_sum
 from .search import candidate_pairs
@@ -42,7 +42,9 @@ class PairHook:
             eps, slave.n, pair.enforcement.tolerance)
         self.radius = pair.search_radius or 2.0 * h
         self.dofs = np.concatenate([slave.dofs.ravel(), master.dofs.ravel()])
-        self.n_coords = len(self.dofs)
+        # the master curve: rebuilt from the converged nodes at each load step (the B-spline
+        # freezes its parametrization there, DESIGN.md §6), moved with the nodes in between
+        self._curve = make_curve(pair.smoothing, master.X, master.seg)
         self.n_global = V.dofmap.index_map.size_global * V.dofmap.index_map_bs
         self.mine = np.zeros(slave.n, dtype=bool)
         self.mine[slave._mine] = True
@@ -74,7 +76,7 @@ class PairHook:
         if not self.my_segments.all():
             keep = self.my_segments[pairs[0]]
             pairs = (pairs[0][keep], pairs[1][keep])
-        curve = Polyline(xm, m.seg)
+        curve = self._curve.with_nodes(xm)
         if self.pair.method == "mortar":
             gap, area, _, _ = mortar.weighted_gaps(xs, s.seg, xm, m.seg, curve, pairs,
                                                    self.pair.n_gauss)
@@ -82,10 +84,27 @@ class PairHook:
             gap, area = nts.node_gaps(xs, s.seg, xm, m.seg, curve, pairs, self._nts_segment)
         g, A = self._owned_sum(nodal_sum(gap, s.n)), self._owned_sum(nodal_sum(area, s.n))
         p, active = self.enforcement.pressure(g, A)
-        st = dict(xs=xs, xm=xm, gap=gap, area=area, g=g, A=A, p=p, active=active)
+        st = dict(xs=xs, xm=xm, gap=gap, area=area, g=g, A=A, p=p, active=active,
+                  **self._coordinates(curve))
         if self.friction is not None:
             st.update(self._tangential(xs, xm, curve, pairs, p, active))
         return st
+
+    def _coordinates(self, curve) -> dict:
+        """The kernels differentiate with respect to [slave nodes, curve points]; T maps
+        master node coordinates to the curve's points (the B-spline's control points)."""
+        ns = self.slave.n
+        if curve.point_map is None:
+            return dict(n_coords=2 * (ns + self.master.n), T=None)
+        T = sp.block_diag([sp.identity(2 * ns), sp.kron(curve.point_map, sp.identity(2))],
+                          format="csr")
+        return dict(n_coords=T.shape[0], T=T)
+
+    def _to_nodes(self, f=None, K=None):
+        T = self.state["T"]
+        if T is None:
+            return f if K is None else K
+        return T.T @ f if K is None else T.T @ K @ T
 
     def _tangential(self, xs, xm, curve, pairs, p, active) -> dict:
         """Projections of the slave nodes, slips since their reference points, return map."""
@@ -119,15 +138,15 @@ class PairHook:
     def _G(self):
         st = self.state
         if "G" not in st:
-            st["G"] = assembly.gradient_matrix(st["gap"], self.slave.n, self.n_coords)
+            st["G"] = assembly.gradient_matrix(st["gap"], self.slave.n, st["n_coords"])
         return st["G"]
 
     def _friction_terms(self, tangent: bool):
         st = self.state
         return assembly.friction_terms(
             st["slip"], st["t"], st["dt_dg"], st["dt_dp"], st["A"], st["g"], st["active"],
-            self._G(), assembly.gradient_matrix(st["area"], self.slave.n, self.n_coords),
-            self.enforcement.epsilon, self.slave.n, self.n_coords, self.mine.astype(float),
+            self._G(), assembly.gradient_matrix(st["area"], self.slave.n, st["n_coords"]),
+            self.enforcement.epsilon, self.slave.n, st["n_coords"], self.mine.astype(float),
             tangent)
 
     def add_residual(self, b, bc_dofs) -> None:
@@ -135,7 +154,7 @@ class PairHook:
         f = -(self._G().T @ (st["p"] * self.mine))
         if self.friction is not None:
             f = f + self._friction_terms(tangent=False)[0]
-        assembly.add_to_vector(b, self.dofs, f)
+        assembly.add_to_vector(b, self.dofs, self._to_nodes(f))
 
     def add_jacobian(self, A, bc_dofs) -> None:
         st = self.state
@@ -149,11 +168,12 @@ class PairHook:
             touching = (A_ > 0) & (st["g"] <= 0.01 * A_**2)
             self._first_jacobian = False
         *_, K = assembly.contact_terms(st["gap"], st["area"], self.enforcement, self.slave.n,
-                                       self.n_coords, self.mine.astype(float),
+                                       st["n_coords"], self.mine.astype(float),
                                        touching=touching)
         if self.friction is not None:
             K = K + self._friction_terms(tangent=True)[1]
-        assembly.add_to_matrix(A, K, self.dofs, self._skip_dofs(bc_dofs), self.n_global)
+        assembly.add_to_matrix(A, self._to_nodes(K=K), self.dofs, self._skip_dofs(bc_dofs),
+                               self.n_global)
 
     def _skip_dofs(self, bc_dofs) -> np.ndarray:
         if self._skip is None:
@@ -176,6 +196,8 @@ class PairHook:
     def begin_step(self) -> None:
         self.augmentations = 0
         self._first_jacobian = True
+        if self.state is not None:
+            self._curve = make_curve(self.pair.smoothing, self.state["xm"], self.master.seg)
 
     def accept_step(self) -> None:
         self.enforcement.accept()
@@ -290,10 +312,6 @@ class PairHook:
 
 def build_contact(scene: Scene, dom, bulk, timings):
     """One hook per contact pair, and the matrix with their couplings preallocated."""
-    for i, c in enumerate(scene.contacts):
-        if c.smoothing != "none":
-            raise SceneError(f"contacts[{i}].smoothing = {c.smoothing!r}: only 'none' is "
-                             "implemented yet")
     V = bulk.V
     l2g = dx.local_to_global_dofs(V)
     hooks, blocks = [], []
@@ -337,8 +355,12 @@ def _coupling_blocks(hook: PairHook) -> list[np.ndarray]:
     stencils of the master candidates of its segments, found with a generous radius)."""
     s, m = hook.slave, hook.master
     ps, pm = candidate_pairs(s.X, s.seg, m.X, m.seg, 3.0 * hook.radius)
-    curve = Polyline(m.X, m.seg)
-    stencil = curve.stencil(pm) if len(pm) else np.zeros((0, 4), dtype=np.int64)
+    curve = hook._curve
+    stencil = curve.stencil(pm) if len(pm) else np.zeros((0, curve.stencil_size), dtype=np.int64)
+    if curve.point_map is not None:  # points → the master nodes they are made of
+        pm_csr = curve.point_map.tocsr()
+        reach = [pm_csr.indices[pm_csr.indptr[i]:pm_csr.indptr[i + 1]] for i in range(pm_csr.shape[0])]
+        stencil = [np.unique(np.concatenate([reach[i] for i in row])) for row in stencil]
     per_node: dict[int, set[int]] = {}
     for (a, b) in s.seg:
         for j in (a, b):

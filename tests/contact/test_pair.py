@@ -12,12 +12,16 @@ from fenicsx_mortar.contact.pair import build_contact
 from fenicsx_mortar.meshing import build_domain
 from fenicsx_mortar.solver import NewtonSolver, Timings
 
+SMOOTHINGS = ["none", "averaged-simple", "averaged-weighted", "averaged-tangent", "hermite",
+              "bspline"]
 
-def system(method: str, enforcement: str, mu: float = 0.0):
+
+def system(method: str, enforcement: str, mu: float = 0.0, smoothing: str = "none"):
     scene = load_scene(ROOT / "demos/scenes/patch_test.toml")
     scene.mesh.params = {"lower_nx": 8, "lower_ny": 4, "upper_nx": 10, "upper_ny": 2}
     c = scene.contacts[0]
     c.method, c.enforcement.type, c.enforcement.epsilon = method, enforcement, 1e4
+    c.smoothing = smoothing
     if mu > 0:
         c.friction.law, c.friction.mu = "coulomb", mu
     dom = build_domain(scene)
@@ -70,10 +74,11 @@ def taylor_remainders(solver, hook, rng, check):
     return hs, np.array(rem)
 
 
+@pytest.mark.parametrize("smoothing", SMOOTHINGS)
 @pytest.mark.parametrize("enforcement", ["penalty", "alm"])
 @pytest.mark.parametrize("method", ["mortar", "nts"])
-def test_taylor_remainder_is_second_order(method, enforcement):
-    solver, hook = system(method, enforcement)
+def test_taylor_remainder_is_second_order(method, enforcement, smoothing):
+    solver, hook = system(method, enforcement, smoothing=smoothing)
     rng = np.random.default_rng(7)
     # sideways shift: no slave node on a master node (no kink); pressed 2e-3 deep, the 1e-5
     # perturbations keep the active set fixed
