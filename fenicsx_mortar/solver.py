@@ -213,7 +213,8 @@ def run_load_steps(solver: NewtonSolver, steps: Steps, on_step: Callable[[int, f
                    max_augmentations: int = 50, t_start: float = 0.0, k_start: int = 0,
                    should_stop: Callable[[], str | None] = lambda: None) -> tuple[bool, str]:
     """Advance pseudo-time through ``steps`` from ``t_start``; halve a failed increment, at
-    most ``max_cuts`` times between two consecutive targets. Returns (completed, message)."""
+    most ``max_cuts`` times in a row, and double it again after each converged step (never
+    past the next target). Returns (completed, message)."""
     t = t_start
     k = k_start
     for target in steps.targets():
@@ -240,6 +241,8 @@ def run_load_steps(solver: NewtonSolver, steps: Steps, on_step: Callable[[int, f
                 t = t_try
                 k += 1
                 on_step(k, t, res, cuts)
+                dt *= 2.0  # after a cut, grow back towards the scene's increment
+                cuts = 0
                 continue
             for h in solver.hooks:
                 h.reject_step()
