@@ -42,10 +42,13 @@ class Result:
 
 
 def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM_WORLD,
-          log: Callable[[str], None] | None = None, restart: bool = False) -> Result:
+          log: Callable[[str], None] | None = None, restart: bool = False,
+          on_step: Callable[[dict, "Result"], None] | None = None) -> Result:
     """Run a scene. With ``out``, write summary.json, solution.xdmf, plots and a checkpoint
     there after every converged step, so a run that fails or is interrupted (SIGINT,
-    SIGTERM) keeps what converged; ``restart=True`` continues from ``out``'s checkpoint."""
+    SIGTERM) keeps what converged; ``restart=True`` continues from ``out``'s checkpoint.
+    ``on_step(record, state)`` is called after every converged step with the step's record
+    and a Result holding the current state (for pictures or custom output of each step)."""
     scene.validate()
     if restart and (out is None or not (Path(out) / checkpoint.FILE).is_file()):
         raise SceneError(f"restart: {out}/{checkpoint.FILE} does not exist (no converged step "
@@ -117,6 +120,9 @@ def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM
                     for h in hooks:
                         h.write_interface(out, k)
         log(_step_line(k, t, res, cuts))
+        if on_step is not None:
+            on_step(record, Result(scene, False, "running", steps, dict(timings), dom, bulk,
+                                   stress, hooks, summary))
 
     progress = _progress_printer() if rank0 else (lambda s: None)
     with stop:
