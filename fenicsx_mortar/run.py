@@ -101,7 +101,7 @@ def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM
                 stress.update()
                 writer.write([bulk.u, stress.sigma], t0)
 
-    def on_step(k: int, t: float, res: StepResult, cuts: int) -> None:
+    def record_step(k: int, t: float, res: StepResult, cuts: int) -> None:
         b = solver.unconstrained_residual()
         record = {"step": k, "time": t, "load_factor": t, "newton_iterations": res.iterations,
                   "augmentations": res.augmentations, "cuts": cuts,
@@ -127,7 +127,7 @@ def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM
     progress = _progress_printer() if rank0 else (lambda s: None)
     with stop:
         completed, message = run_load_steps(
-            solver, scene.steps, on_step, progress,
+            solver, scene.steps, record_step, progress,
             max(c.enforcement.max_augmentations for c in scene.contacts) if scene.contacts else 0,
             t_start=t0, k_start=k0, should_stop=stop.requested)
     timings["total"] = time.perf_counter() - t_start
