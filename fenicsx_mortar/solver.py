@@ -28,6 +28,8 @@ class Hook(Protocol):
     def add_residual(self, b, bc_dofs) -> None: ...
     def add_jacobian(self, A, bc_dofs) -> None: ...
     def newton_ok(self) -> bool: ...              # e.g. active set unchanged since last update
+    def begin_solve(self) -> None: ...            # a Newton solve starts
+    def cycling(self) -> str | None: ...          # a cycling active set, described
     def augment(self) -> bool: ...                # ALM update; True → solve again
     def begin_step(self) -> None: ...
     def accept_step(self) -> None: ...
@@ -80,6 +82,7 @@ class NewtonSolver:
         self.history: list[float] = []
         self._r0 = None
         self._r_ref = 0.0
+        self._cycle = None
         comm = bulk.domain.mesh.comm
         self.snes = PETSc.SNES().create(comm)
         prefix = f"fm{id(self)}_"
@@ -155,6 +158,11 @@ class NewtonSolver:
         small = fnorm <= s.atol and (fnorm <= s.rtol * self._r0 or self._r0 <= s.atol)
         if small and all(h.newton_ok() for h in self.hooks):
             return PETSc.SNES.ConvergedReason.CONVERGED_FNORM_ABS
+        # cycling guard: an active set (or stick/slip state) that comes back is a loop Newton
+        # will not leave; stop now and let the step be cut, saying which nodes flip
+        self._cycle = next((m for m in (h.cycling() for h in self.hooks) if m), None)
+        if self._cycle:
+            return PETSc.SNES.ConvergedReason.DIVERGED_INNER
         if it >= s.max_iterations:
             return PETSc.SNES.ConvergedReason.DIVERGED_MAX_IT
         return PETSc.SNES.ConvergedReason.ITERATING
@@ -166,6 +174,9 @@ class NewtonSolver:
         self._r0 = None
         for aug in range(max_augmentations + 1):
             self.history = []
+            self._cycle = None
+            for h in self.hooks:
+                h.begin_solve()
             self._callback_time = 0.0
             t0 = time.perf_counter()
             self.snes.solve(None, self.x)
@@ -174,6 +185,10 @@ class NewtonSolver:
             reason = self.snes.getConvergedReason()
             res.iterations += self.snes.getIterationNumber()
             res.residuals.extend(self.history)
+            if reason <= 0 and self._cycle:
+                res.reason = f"Newton stopped by the cycling guard after " \
+                             f"{self.snes.getIterationNumber()} iterations: {self._cycle}"
+                return res
             if reason <= 0:
                 res.reason = f"Newton failed: {_REASONS.get(reason, reason)} after " \
                              f"{self.snes.getIterationNumber()} iterations, residuals " \

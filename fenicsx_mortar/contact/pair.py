@@ -55,6 +55,7 @@ class PairHook:
         self._skip = None
         self.augmentations = 0
         self._first_jacobian = True
+        self._decisions: list[np.ndarray] = []
         self._nts_segment = np.full(slave.n, -1, dtype=np.int64)
         self.friction = None
         if pair.friction.law == "coulomb":
@@ -185,6 +186,34 @@ class PairHook:
     # -- step logic -------------------------------------------------------------------
     def newton_ok(self) -> bool:
         return True
+
+    def begin_solve(self) -> None:
+        self._decisions = []
+
+    def _decision(self) -> np.ndarray:
+        """What the semi-smooth Newton decides per slave node: 0 inactive, 1 active (or, with
+        friction, the stick/slip status with the slip direction)."""
+        st = self.state
+        d = st["active"].astype(np.int8)
+        if self.friction is not None:
+            d = d + 2 * st["status"].astype(np.int8) + 8 * (st["t"] < 0)
+        return d
+
+    def cycling(self) -> str | None:
+        """A decision vector that reappears after a different one (period ≥ 2)."""
+        if self.state is None:
+            return None
+        d = self._decision()
+        seen = self._decisions
+        seen.append(d)
+        if len(seen) >= 3 and not np.array_equal(d, seen[-2]):
+            for k, old in enumerate(seen[:-2]):
+                if np.array_equal(d, old):
+                    flip = np.flatnonzero(d != seen[-2])
+                    return (f"contact {self.pair.name}: the active/stick-slip set of iteration "
+                            f"{len(seen) - 1} repeats iteration {k} (period "
+                            f"{len(seen) - 1 - k}); slave nodes {flip[:10].tolist()} flip")
+        return None
 
     def augment(self) -> bool:
         st = self.state
