@@ -169,6 +169,10 @@ class Steps:
     count: int | None = None
     times: list[float] | None = None
     max_cuts: int = 6
+    min_increment: float | None = None  # floor of cut increments; default 1e-4 × final time
+
+    def floor(self) -> float:
+        return self.min_increment if self.min_increment is not None else 1e-4 * self.targets()[-1]
 
     def targets(self) -> list[float]:
         if self.times is not None:
@@ -328,6 +332,8 @@ class Scene:
             raise SceneError(f"steps.end = {st.end}: must be positive")
         if st.max_cuts < 0:
             raise SceneError("steps.max_cuts must be >= 0")
+        if st.min_increment is not None and not st.min_increment > 0:
+            raise SceneError("steps.min_increment must be positive")
         sv = self.solver
         for k in ("atol", "rtol"):
             if not getattr(sv, k) > 0:

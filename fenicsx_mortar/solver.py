@@ -266,6 +266,10 @@ def run_load_steps(solver: NewtonSolver, steps: Steps, on_step: Callable[[int, f
             if should_stop():
                 continue  # reported at the top of the loop
             cuts += 1
+            if dt * 0.5 < steps.floor():
+                return False, (f"stopped at pseudo-time {t:.6g} (last converged step {k}): the "
+                               f"increment would fall below the floor {steps.floor():.3g} "
+                               f"(steps.min_increment); {res.reason}")
             if cuts > steps.max_cuts:
                 return False, (f"stopped at pseudo-time {t:.6g} (last converged step {k}): the "
                                f"increment to {t_try:.6g} failed after {steps.max_cuts} cuts; "
