@@ -29,7 +29,7 @@ class Hook(Protocol):
     def add_jacobian(self, A, bc_dofs) -> None: ...
     def newton_ok(self) -> bool: ...              # e.g. active set unchanged since last update
     def begin_solve(self) -> None: ...            # a Newton solve starts
-    def cycling(self) -> str | None: ...          # a cycling active set, described
+    def cycling(self, fnorm: float) -> str | None: ...  # a cycling active set, described
     def augment(self) -> bool: ...                # ALM update; True → solve again
     def begin_step(self) -> None: ...
     def accept_step(self) -> None: ...
@@ -160,7 +160,7 @@ class NewtonSolver:
             return PETSc.SNES.ConvergedReason.CONVERGED_FNORM_ABS
         # cycling guard: an active set (or stick/slip state) that comes back is a loop Newton
         # will not leave; stop now and let the step be cut, saying which nodes flip
-        self._cycle = next((m for m in (h.cycling() for h in self.hooks) if m), None)
+        self._cycle = next((m for m in (h.cycling(fnorm) for h in self.hooks) if m), None)
         if self._cycle:
             return PETSc.SNES.ConvergedReason.DIVERGED_INNER
         if it >= s.max_iterations:

@@ -6,6 +6,7 @@ inserted by the rank that owns its dofs, so every term enters the global system 
 """
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -38,6 +39,11 @@ class PairHook:
             # first Newton solve fragile (Hertz at h = a/4 fails from 10 E/h), so start at
             # most at E/h and let the augmentations raise it (enforcement.py)
             eps = min(eps, nominal)
+        if pair.enforcement.type == "penalty" and eps > 1e3 * nominal:
+            warnings.warn(f"contact {pair.name}: penalty epsilon = {eps:.3g} is "
+                          f"{eps / nominal:.0e} x E/h = {nominal:.3g}: round-off in epsilon*gap "
+                          "may keep Newton from converging; prefer enforcement type 'alm'",
+                          stacklevel=2)
         self.enforcement = ENFORCEMENTS[pair.enforcement.type](
             eps, slave.n, pair.enforcement.tolerance)
         self.radius = pair.search_radius or 2.0 * h
@@ -55,7 +61,7 @@ class PairHook:
         self._skip = None
         self.augmentations = 0
         self._first_jacobian = True
-        self._decisions: list[np.ndarray] = []
+        self._decisions: list[tuple[np.ndarray, float]] = []
         self._nts_segment = np.full(slave.n, -1, dtype=np.int64)
         self.friction = None
         if pair.friction.law == "coulomb":
@@ -199,20 +205,24 @@ class PairHook:
             d = d + 2 * st["status"].astype(np.int8) + 8 * (st["t"] < 0)
         return d
 
-    def cycling(self) -> str | None:
-        """A decision vector that reappears after a different one (period ≥ 2)."""
+    def cycling(self, fnorm: float) -> str | None:
+        """A decision vector that reappears after a different one (period ≥ 2) while the
+        residual has not even halved since its first appearance: Newton is going round in
+        circles (a repeat with progress, e.g. an edge node opening and closing again on the
+        way to the answer, is no cycle)."""
         if self.state is None:
             return None
         d = self._decision()
         seen = self._decisions
-        seen.append(d)
-        if len(seen) >= 3 and not np.array_equal(d, seen[-2]):
-            for k, old in enumerate(seen[:-2]):
-                if np.array_equal(d, old):
-                    flip = np.flatnonzero(d != seen[-2])
+        seen.append((d, fnorm))
+        if len(seen) >= 3 and not np.array_equal(d, seen[-2][0]):
+            for k, (old, r_old) in enumerate(seen[:-2]):
+                if np.array_equal(d, old) and fnorm >= 0.5 * r_old:
+                    flip = np.flatnonzero(d != seen[-2][0])
                     return (f"contact {self.pair.name}: the active/stick-slip set of iteration "
                             f"{len(seen) - 1} repeats iteration {k} (period "
-                            f"{len(seen) - 1 - k}); slave nodes {flip[:10].tolist()} flip")
+                            f"{len(seen) - 1 - k}) with the residual at {fnorm:.3e} (was "
+                            f"{r_old:.3e}); slave nodes {flip[:10].tolist()} flip")
         return None
 
     def augment(self) -> bool:
