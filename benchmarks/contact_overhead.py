@@ -151,10 +151,10 @@ def one_iteration(solver: NewtonSolver, hook, reps: int) -> dict[str, float]:
     def sparse():
         # add_residual builds G once per iterate; add_jacobian's contact_terms builds
         # G (again), ∇A and the Hessian sum
-        G = assembly.gradient_matrix(ctx["gap"], s.n, hook.n_coords)
+        G = assembly.gradient_matrix(ctx["gap"], s.n, 2 * (s.n + m.n))
         ctx["f"] = -(G.T @ (ctx["p"] * hook.mine))
         *_, ctx["K"] = assembly.contact_terms(ctx["gap"], ctx["area"], hook.enforcement, s.n,
-                                              hook.n_coords, hook.mine.astype(float))
+                                              2 * (s.n + m.n), hook.mine.astype(float))
 
     def petsc():
         assembly.add_to_vector(b, hook.dofs, ctx["f"])

@@ -100,6 +100,11 @@ class NewtonSolver:
         self.snes.setConvergenceTest(self._converged)
         self.snes.setFromOptions()
         self.snes.getKSP().setFromOptions()
+        # PETSc's options database is global and holds at most 512 entries: drop ours once
+        # applied, or a process that builds many solvers (a study, a test session) runs out
+        for k in list(opts.getAll()):
+            if k.startswith(prefix):
+                opts.delValue(k)
 
     # -- SNES callbacks -------------------------------------------------------------
     def _set_iterate(self, x) -> None:

@@ -47,14 +47,46 @@ def _lift(d: np.ndarray, nlead: int, nd: int) -> np.ndarray:
     return d.reshape(d.shape[:nlead] + (1,) * missing + d.shape[nlead:])
 
 
+#: memoized support bookkeeping: the kernels combine the same few small supports over and
+#: over (the same expression graph runs for every block of pairs), so the unions, their
+#: positions, the contiguous runs and the flat Hessian positions are computed once per
+#: distinct support and looked up afterwards (cached arrays are read-only)
+_CACHE_MAX = 8192
+_union_cache: dict = {}
+_runs_cache: dict = {}
+_flat_cache: dict = {}
+
+
+def _key(a: np.ndarray):
+    return a.dtype.num, a.tobytes()
+
+
+def _frozen(a):
+    if a is not None:
+        a.setflags(write=False)
+    return a
+
+
 def _union(ia: np.ndarray, ib: np.ndarray):
     """Union of two supports and the positions of each in it (None: identical to the union)."""
-    if ia is ib or (ia.shape == ib.shape and np.array_equal(ia, ib)):
+    if ia is ib:
         return ia, None, None
-    u = np.union1d(ia, ib)
-    pa = None if u.shape == ia.shape else np.searchsorted(u, ia)
-    pb = None if u.shape == ib.shape else np.searchsorted(u, ib)
-    return u, pa, pb
+    key = (_key(ia), _key(ib))
+    hit = _union_cache.get(key)
+    if hit is None:
+        if ia.shape == ib.shape and np.array_equal(ia, ib):
+            hit = (None, None, None)
+        else:
+            u = np.union1d(ia, ib)
+            pa = None if u.shape == ia.shape else np.searchsorted(u, ia)
+            pb = None if u.shape == ib.shape else np.searchsorted(u, ib)
+            hit = (_frozen(u), _frozen(pa), _frozen(pb))
+        if len(_union_cache) >= _CACHE_MAX:
+            _union_cache.clear()
+        _union_cache[key] = hit
+    if hit[0] is None:
+        return ia, None, None
+    return hit
 
 
 def _eg(g: np.ndarray, p, k: int) -> np.ndarray:
@@ -68,12 +100,32 @@ def _eg(g: np.ndarray, p, k: int) -> np.ndarray:
 
 def _runs(p: np.ndarray):
     """Contiguous runs of the positions p as (source slice, destination slice) pairs:
-    block copies over contiguous batch rows are several times faster than fancy indexing."""
-    brk = np.flatnonzero(np.diff(p) != 1) + 1
-    starts = np.concatenate([[0], brk])
-    ends = np.concatenate([brk, [p.shape[0]]])
-    return [(slice(a, b), slice(p[a], p[a] + b - a))
-            for a, b in zip(starts.tolist(), ends.tolist())]
+    block copies over contiguous batch rows are several times faster than fancy indexing.
+    Memoized per p."""
+    key = _key(p)
+    runs = _runs_cache.get(key)
+    if runs is None:
+        brk = np.flatnonzero(np.diff(p) != 1) + 1
+        starts = np.concatenate([[0], brk])
+        ends = np.concatenate([brk, [p.shape[0]]])
+        runs = tuple((slice(a, b), slice(p[a], p[a] + b - a))
+                     for a, b in zip(starts.tolist(), ends.tolist()))
+        if len(_runs_cache) >= _CACHE_MAX:
+            _runs_cache.clear()
+        _runs_cache[key] = runs
+    return runs
+
+
+def _flat(p: np.ndarray, k: int) -> np.ndarray:
+    """Flat positions of the block [p, p] in a (k, k) array, row-major (memoized)."""
+    key = (_key(p), k)
+    f = _flat_cache.get(key)
+    if f is None:
+        f = _frozen((p[:, None] * k + p[None, :]).ravel())
+        if len(_flat_cache) >= _CACHE_MAX:
+            _flat_cache.clear()
+        _flat_cache[key] = f
+    return f
 
 
 def _eh(h, p, k: int):
@@ -94,6 +146,14 @@ def _place(H: np.ndarray, h: np.ndarray, p, coef=None) -> None:
         H += h if coef is None else coef * h
         return
     runs = _runs(p)
+    if len(runs) > 1 and H.flags.c_contiguous:
+        # scattered support: one fancy-indexed update of the flattened (k·k, *batch) rows
+        # instead of a Python loop over runs² blocks (positions are distinct: no clash)
+        k, kp = H.shape[0], p.shape[0]
+        H2 = H.reshape((k * k,) + H.shape[2:])
+        src = h.reshape((kp * kp,) + h.shape[2:])
+        H2[_flat(p, k)] += src if coef is None else coef * src
+        return
     for si, di in runs:
         for sj, dj in runs:
             H[di, dj] += h[si, sj] if coef is None else coef * h[si, sj]
@@ -166,6 +226,8 @@ class Jet2:
     @property
     def grad(self) -> np.ndarray:
         """Dense gradient (..., m)."""
+        if self.idx.shape[0] == self._m:  # full support (sorted): a transposed copy
+            return np.ascontiguousarray(np.moveaxis(self._g, 0, -1))
         out = np.zeros(self.val.shape + (self._m,))
         if self.idx.shape[0]:
             out[..., self.idx] = np.moveaxis(self._g, 0, -1)
@@ -174,6 +236,8 @@ class Jet2:
     @property
     def hess(self) -> np.ndarray:
         """Dense Hessian (..., m, m)."""
+        if self._h is not None and self.idx.shape[0] == self._m:
+            return np.ascontiguousarray(np.moveaxis(self._h, (0, 1), (-2, -1)))
         out = np.zeros(self.val.shape + (self._m, self._m))
         if self._h is not None:
             out[..., self.idx[:, None], self.idx] = np.moveaxis(self._h, (0, 1), (-2, -1))
@@ -280,7 +344,7 @@ class Jet2:
     def _chain(self, f: np.ndarray, d1: np.ndarray, d2: np.ndarray) -> "Jet2":
         """Jet of φ(self) from φ = f, φ' = d1, φ'' = d2 evaluated at self.val."""
         g = self._g
-        hess = d2 * _outer(g, g)
+        hess = _outer(d2 * g, g)
         if self._h is not None:
             hess += d1 * self._h
         return Jet2._raw(f, d1 * g, hess, self.idx, self._m)
@@ -330,6 +394,17 @@ def where(cond, a: Scalar, b: Scalar) -> Scalar:
     a = a if isinstance(a, Jet2) else Jet2.constant(a, m)
     b = b if isinstance(b, Jet2) else Jet2.constant(b, m)
     cond = np.asarray(cond, dtype=bool)
+    # one branch everywhere: that branch itself (same values and derivatives)
+    if cond.all():
+        sa = a.val.shape
+        if (sa == cond.shape and b.val.shape in (sa, ())) or \
+                sa == np.broadcast_shapes(cond.shape, sa, b.val.shape):
+            return a
+    elif not cond.any():
+        sb = b.val.shape
+        if (sb == cond.shape and a.val.shape in (sb, ())) or \
+                sb == np.broadcast_shapes(cond.shape, a.val.shape, sb):
+            return b
     u, pa, pb = _union(a.idx, b.idx)
     k = u.shape[0]
     val = np.where(cond, a.val, b.val)
@@ -359,7 +434,9 @@ def substitute(f: Jet2, inner: Sequence[Jet2]) -> Jet2:
     fg[f.idx] = f._g
     fh = np.zeros((f.m, f.m) + shape)
     if f._h is not None:
-        fh[f.idx[:, None], f.idx] = f._h
+        k = f.idx.shape[0]
+        fh.reshape((f.m * f.m,) + shape)[_flat(f.idx, f.m)] = \
+            np.broadcast_to(f._h, (k, k) + shape).reshape((k * k,) + shape)
     G = np.zeros((r, m) + shape)
     for i, z in enumerate(inner):
         G[i][z.idx] = z._g
@@ -401,7 +478,41 @@ def scale(u: Vec2, s: Scalar) -> Vec2:
     return (u[0] * s, u[1] * s)
 
 
+def _dot_jets(u: Vec2, v: Vec2) -> Jet2:
+    """u·v for four jets in one pass: the Hessian Σ_i (∇u_i ⊗ ∇v_i + ∇v_i ⊗ ∇u_i
+    + u_i ∇²v_i + v_i ∇²u_i) symmetrized once over the common support (the same result as
+    u[0] * v[0] + u[1] * v[1] up to round-off, with about half the array passes)."""
+    a0, a1 = u
+    b0, b1 = v
+    m = a0._m
+    k_idx = a0.idx
+    for j in (a1, b0, b1):
+        k_idx = _union(k_idx, j.idx)[0]
+    k = k_idx.shape[0]
+    val = a0.val * b0.val + a1.val * b1.val
+    nd = val.ndim
+    pos = [_union(k_idx, j.idx)[2] for j in (a0, b0, a1, b1)]
+    ga0, gb0, ga1, gb1 = (_lift(_eg(j._g, p, k), 1, nd)
+                          for j, p in zip((a0, b0, a1, b1), pos))
+    grad = (a0.val * gb0 + b0.val * ga0) + (a1.val * gb1 + b1.val * ga1)
+    T = _outer(ga0, gb0)
+    T += _outer(ga1, gb1)
+    hess = T + np.swapaxes(T, 0, 1)
+    for j, p, coef in ((b0, pos[1], a0.val), (a0, pos[0], b0.val), (b1, pos[3], a1.val),
+                       (a1, pos[2], b1.val)):
+        if j._h is not None:
+            _place(hess, _lift(j._h, 2, nd), p, coef)
+    return Jet2._raw(val, grad, hess, k_idx, m)
+
+
 def dot(u: Vec2, v: Vec2) -> Scalar:
+    if (type(u[0]) is Jet2 and type(u[1]) is Jet2 and type(v[0]) is Jet2
+            and type(v[1]) is Jet2):
+        s0, s1 = u[0].val.shape, v[0].val.shape
+        if ((s0 == s1 == u[1].val.shape == v[1].val.shape)
+                or np.broadcast_shapes(s0, s1, u[1].val.shape, v[1].val.shape)
+                == np.broadcast_shapes(s0, s1)):
+            return _dot_jets(u, v)
     return u[0] * v[0] + u[1] * v[1]
 
 

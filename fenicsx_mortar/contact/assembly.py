@@ -8,6 +8,13 @@ With the weighted gaps g̃_j, nodal areas A_j and pressures p_j (DESIGN.md §4�
 (∂p_j/∂x = −ε ∇g̃_j/A_j + ε g̃_j ∇A_j/A_j² while p_j > 0; the A-term makes K unsymmetric.)
 Everything is built as scipy sparse matrices over the stacked surface coordinates
 [slave x, slave y, …, master x, master y, …] and mapped to global dofs once.
+
+Cost (issue 7): K is returned as COO triplets with repeated entries (the node-a and node-b
+Hessians of a mortar pair are summed first, over the same local coordinates); they are summed
+once, on insertion. The layouts (which triplet lands in which CSR slot) of the gradient
+matrices and of the insertion into PETSc are kept while the structure repeats between
+Newton iterations, so a repeated structure costs bincounts instead of sorts; the gradient
+matrix is cached on its contributions (residual and tangent of one iterate share it).
 """
 from __future__ import annotations
 
@@ -18,50 +25,192 @@ from petsc4py import PETSc
 from .kernel import NodalContributions, nodal_sum
 
 
+def _gidx(c: NodalContributions, n_slave: int) -> np.ndarray:
+    """c.global_indices(n_slave), cached on the contributions."""
+    key = ("gidx", n_slave)
+    gidx = c.cache.get(key)
+    if gidx is None:
+        gidx = c.cache[key] = c.global_indices(n_slave)
+    return gidx
+
+
+def _rows(c: NodalContributions, m: int) -> np.ndarray:
+    """The node of each contribution repeated over its m local coordinates (cached)."""
+    key = ("rows", m)
+    rows = c.cache.get(key)
+    if rows is None:
+        rows = c.cache[key] = np.repeat(c.node, m)
+    return rows
+
+
+_layouts: dict = {}
+
+
+def _csr(vals, rows, cols, shape) -> sp.csr_matrix:
+    """CSR from COO triplets (duplicates summed). The layout (which triplet goes to which
+    slot) is kept for the last few structures: when the same (rows, cols) come again (the
+    next Newton iteration; the gap and area gradients share it) the values are summed into
+    it with one bincount instead of a sort."""
+    key = (shape, rows.shape[0])
+    lay = _layouts.get(key)
+    if lay is None or not (np.array_equal(lay[0], rows) and np.array_equal(lay[1], cols)):
+        n_cols = np.int64(shape[1])
+        uniq, slot = np.unique(rows.astype(np.int64) * n_cols + cols, return_inverse=True)
+        itype = np.int32 if max(shape) < 2**31 - 1 else np.int64
+        indptr = np.zeros(shape[0] + 1, dtype=itype)
+        np.cumsum(np.bincount(uniq // n_cols, minlength=shape[0]), out=indptr[1:])
+        lay = (rows.copy(), cols.copy(), slot, (uniq % n_cols).astype(itype), indptr)
+        if len(_layouts) >= 8:
+            _layouts.clear()
+        _layouts[key] = lay
+    data = np.bincount(lay[2], weights=vals, minlength=lay[3].shape[0])
+    M = sp.csr_matrix((data, lay[3].copy(), lay[4].copy()), shape=shape)
+    M.has_sorted_indices = True
+    return M
+
+
 def gradient_matrix(c: NodalContributions, n_slave: int, n_coords: int) -> sp.csr_matrix:
-    """Rows ∇q_j (q = g̃ or A) over the stacked coordinates, summed over contributions."""
+    """Rows ∇q_j (q = g̃ or A) over the stacked coordinates, summed over contributions.
+
+    Cached on ``c`` (the residual and the tangent of one iterate share it); treat the
+    result as read-only."""
     if c.size == 0:
         return sp.csr_matrix((n_slave, n_coords))
-    gidx = c.global_indices(n_slave)
-    rows = np.repeat(c.node, gidx.shape[1])
-    return sp.csr_matrix((c.grad.ravel(), (rows, gidx.ravel())), shape=(n_slave, n_coords))
+    key = ("G", n_slave, n_coords)
+    hit = c.cache.get(key)
+    if hit is not None and hit[0] is c.grad:
+        return hit[1]
+    gidx = _gidx(c, n_slave)
+    G = _csr(c.grad.ravel(), _rows(c, gidx.shape[1]), gidx.ravel(), (n_slave, n_coords))
+    c.cache[key] = (c.grad, G)
+    return G
+
+
+def _halves(c: NodalContributions, n_slave: int) -> bool:
+    """Whether contributions k and k + K/2 have the same local coordinates (the mortar
+    kernel's node-a and node-b rows of a pair): their Hessians can then be summed before
+    they are scattered (cached)."""
+    hit = c.cache.get("halves")
+    if hit is None:
+        K = c.size
+        gidx = _gidx(c, n_slave)
+        hit = c.cache["halves"] = bool(K % 2 == 0 and K > 0
+                                       and np.array_equal(gidx[:K // 2], gidx[K // 2:]))
+    return hit
+
+
+def _hessian_triplets(c: NodalContributions, weight: np.ndarray, n_slave: int):
+    """(rows, cols, vals) of Σ_k weight[node_k] ∇²q_k (contributions with weight ≠ 0;
+    repeated (row, col) entries are to be summed)."""
+    w = weight[c.node]
+    gidx = _gidx(c, n_slave)
+    if _halves(c, n_slave):
+        h = c.size // 2
+        wa, wb = w[:h], w[h:]
+        on = (wa != 0.0) | (wb != 0.0)
+        H = c.hess
+        if on.all():  # contiguous halves: no gathers
+            keep = slice(0, h)
+            vals = H[:h] * wa[:, None, None]
+            vals += H[h:] * wb[:, None, None]
+        else:
+            keep = np.flatnonzero(on)
+            vals = H[keep] * wa[keep, None, None]
+            vals += H[h + keep] * wb[keep, None, None]
+        vals = vals.ravel()
+    else:
+        keep = np.flatnonzero(w != 0.0)
+        vals = (c.hess[keep] * w[keep, None, None]).ravel()
+    rows, cols = _block_indices(gidx[keep])
+    return rows, cols, vals
+
+
+_blocks: list = []
+
+
+def _block_indices(gidx: np.ndarray):
+    """Row and column indices of the dense m × m blocks over the rows of gidx (k, m),
+    flattened row-major; in the sparse index type; the last result is reused while the
+    structure repeats (between Newton iterations)."""
+    if _blocks and np.array_equal(_blocks[0], gidx):
+        return _blocks[1], _blocks[2]
+    m = gidx.shape[1]
+    g = gidx.astype(np.int32) if gidx.size and gidx.max() < 2**31 - 1 else gidx
+    rows = np.repeat(g, m, axis=1).ravel()
+    cols = np.tile(g, (1, m)).ravel()
+    rows.setflags(write=False)
+    cols.setflags(write=False)
+    _blocks[:] = [gidx.copy(), rows, cols]
+    return rows, cols
 
 
 def hessian_sum(c: NodalContributions, weight: np.ndarray, n_slave: int,
                 n_coords: int) -> sp.coo_matrix:
-    """Σ_k weight[node_k] ∇²q_k over the stacked coordinates."""
-    w = weight[c.node]
-    keep = w != 0.0
-    if not keep.any():
+    """Σ_k weight[node_k] ∇²q_k over the stacked coordinates (COO, repeated entries to be
+    summed)."""
+    if c.size == 0 or not np.any(weight[c.node] != 0.0):
         return sp.coo_matrix((n_coords, n_coords))
-    gidx = c.global_indices(n_slave)[keep]
-    m = gidx.shape[1]
-    rows = np.repeat(gidx, m, axis=1).ravel()
-    cols = np.tile(gidx, (1, m)).ravel()
-    vals = (c.hess[keep] * w[keep, None, None]).ravel()
+    rows, cols, vals = _hessian_triplets(c, weight, n_slave)
     return sp.coo_matrix((vals, (rows, cols)), shape=(n_coords, n_coords))
+
+
+def _tangent(gap: NodalContributions, area: NodalContributions, d1: np.ndarray,
+             d2: np.ndarray, hw: np.ndarray, n_slave: int, n_coords: int,
+             G: sp.csr_matrix) -> sp.coo_matrix:
+    """Σ_j d1_j ∇g̃_j ⊗ ∇g̃_j − d2_j ∇g̃_j ⊗ ∇A_j − Σ_k hw[node_k] ∇²g̃_k, i.e.
+    Gᵀ (D1 G − D2 G_A) − H, as COO triplets with repeated entries (summed on insertion;
+    ``tocsr()`` sums them too)."""
+    shape = (n_coords, n_coords)
+    on = (d1 != 0.0) | (d2 != 0.0)
+    parts_r, parts_c, parts_v = [], [], []
+    if gap.size and on.any():
+        # C = D1 G − D2 G_A in one CSR build over the contributions of nodes with a factor
+        sg = np.flatnonzero(on[gap.node])
+        sa = np.flatnonzero(on[area.node]) if area.size else sg[:0]
+        gg = _gidx(gap, n_slave)[sg]
+        nd = gap.node[sg]
+        vals = [(gap.grad[sg] * d1[nd, None]).ravel()]
+        rows, cols = [np.repeat(nd, gg.shape[1])], [gg.ravel()]
+        if len(sa):
+            ga = _gidx(area, n_slave)[sa]
+            na = area.node[sa]
+            vals.append((area.grad[sa] * -d2[na, None]).ravel())
+            rows.append(np.repeat(na, ga.shape[1]))
+            cols.append(ga.ravel())
+        C = _csr(np.concatenate(vals), np.concatenate(rows), np.concatenate(cols),
+                 (n_slave, n_coords))
+        K1 = (G.T @ C).tocoo()
+        parts_r.append(K1.row), parts_c.append(K1.col), parts_v.append(K1.data)
+    if gap.size and np.any(hw[gap.node] != 0.0):
+        r, c, v = _hessian_triplets(gap, hw, n_slave)
+        parts_r.append(r), parts_c.append(c), parts_v.append(-v)
+    if not parts_r:
+        return sp.coo_matrix(shape)
+    return sp.coo_matrix((np.concatenate(parts_v),
+                          (np.concatenate(parts_r), np.concatenate(parts_c))), shape=shape)
 
 
 def contact_terms(gap: NodalContributions, area: NodalContributions, enforcement,
                   n_slave: int, n_coords: int, weight: np.ndarray | None = None,
-                  tangent: bool = True, touching: np.ndarray | None = None):
+                  tangent: bool = True, touching: np.ndarray | None = None,
+                  G: sp.spmatrix | None = None):
     """(g̃, A, p, active, R, K) over the stacked coordinates; ``weight`` (0/1 per slave
     node) selects the nodes whose terms this rank inserts; ``touching`` marks extra nodes
-    that get the penalty stiffness in K (see PairHook.add_jacobian)."""
+    that get the penalty stiffness in K (see PairHook.add_jacobian); ``G`` the gap's
+    :func:`gradient_matrix` if already built (it is cached on ``gap`` anyway)."""
     g, A = nodal_sum(gap, n_slave), nodal_sum(area, n_slave)
     p, active = enforcement.pressure(g, A)
     w = np.ones(n_slave) if weight is None else weight
-    G = gradient_matrix(gap, n_slave, n_coords)
+    if G is None:
+        G = gradient_matrix(gap, n_slave, n_coords)
     R = -(G.T @ (p * w))
     K = None
     if tangent:
         eps = enforcement.epsilon
         act = (active if touching is None else active | touching) * w
         As = np.where(A > 0, A, 1.0)
-        GA = gradient_matrix(area, n_slave, n_coords)
-        K = (G.T @ sp.diags(act * eps / As) @ G
-             - G.T @ sp.diags(act * eps * g / As**2) @ GA
-             - hessian_sum(gap, p * w, n_slave, n_coords))
+        K = _tangent(gap, area, act * eps / As, act * eps * g / As**2, p * w, n_slave,
+                     n_coords, G)
     return g, A, p, active, R, K
 
 
@@ -94,15 +243,73 @@ def add_to_vector(b: PETSc.Vec, dofs: np.ndarray, values: np.ndarray) -> None:
     b.assemble()
 
 
+_skip_cache: dict = {}
+
+
+def _skipped(dofs: np.ndarray, skip: np.ndarray) -> np.ndarray:
+    """Boolean mask over ``dofs``: which are in ``skip`` (cached for the same arrays)."""
+    key = (id(dofs), id(skip))
+    hit = _skip_cache.get(key)
+    if hit is not None and hit[0] is dofs and hit[1] is skip and hit[2].shape == dofs.shape:
+        return hit[2]
+    mask = np.isin(dofs, skip)
+    if len(_skip_cache) > 64:
+        _skip_cache.clear()
+    _skip_cache[key] = (dofs, skip, mask)
+    return mask
+
+
+class _Pattern:
+    """The CSR layout of the last insertion into a matrix: for the same triplet structure
+    (the usual case between Newton iterations) the values are summed into it with one
+    bincount instead of a fresh COO → CSR conversion (sort)."""
+
+    __slots__ = ("A", "dofs", "skip", "row", "col", "sel", "slot", "indptr", "indices")
+
+
+_patterns: dict = {}
+
+
 def add_to_matrix(A: PETSc.Mat, K: sp.spmatrix, dofs: np.ndarray, skip: np.ndarray,
                   n_global: int) -> None:
     """A[dofs, dofs] += K, leaving out the rows and columns of Dirichlet dofs ``skip``
     (the matrix keeps identity rows/columns there)."""
     K = K.tocoo()
-    r, c = dofs[K.row], dofs[K.col]
-    keep = (K.data != 0.0) & ~np.isin(r, skip) & ~np.isin(c, skip)
-    r, c, v = r[keep], c[keep], K.data[keep]
+    pat = _patterns.get(id(A))
+    if (pat is not None and pat.A is A and pat.dofs is dofs and pat.skip is skip
+            and np.array_equal(pat.row, K.row) and np.array_equal(pat.col, K.col)):
+        vals = np.bincount(pat.slot, weights=K.data[pat.sel], minlength=pat.indices.shape[0])
+        A.setValuesCSR(pat.indptr, pat.indices, vals, addv=PETSc.InsertMode.ADD)
+        return
+    out = _skipped(dofs, skip)
+    structural = ~out[K.row] & ~out[K.col]
     r0, r1 = A.getOwnershipRange()
+    r = dofs[K.row]
+    if np.all((r[structural] >= r0) & (r[structural] < r1)):
+        # serial (or all rows owned): remember the layout of all structural entries (explicit
+        # zeros included: adding 0 changes no value, and the slots lie in the contact
+        # couplings preallocated by create_matrix)
+        sel = np.flatnonzero(structural)
+        rl = (r[sel] - r0).astype(np.int64)
+        cl = dofs[K.col[sel]].astype(np.int64)
+        key = rl * np.int64(n_global) + cl
+        uniq, slot = np.unique(key, return_inverse=True)
+        ur = uniq // n_global
+        indptr = np.zeros(r1 - r0 + 1, dtype=PETSc.IntType)
+        np.cumsum(np.bincount(ur, minlength=r1 - r0), out=indptr[1:])
+        pat = _Pattern()
+        pat.A, pat.dofs, pat.skip = A, dofs, skip
+        pat.row, pat.col = K.row.copy(), K.col.copy()
+        pat.sel, pat.slot = sel, slot
+        pat.indptr, pat.indices = indptr, (uniq % n_global).astype(PETSc.IntType)
+        if len(_patterns) > 16:
+            _patterns.clear()
+        _patterns[id(A)] = pat
+        vals = np.bincount(slot, weights=K.data[sel], minlength=uniq.shape[0])
+        A.setValuesCSR(pat.indptr, pat.indices, vals, addv=PETSc.InsertMode.ADD)
+        return
+    keep = (K.data != 0.0) & structural
+    r, c, v = r[keep], dofs[K.col[keep]], K.data[keep]
     own = (r >= r0) & (r < r1)
     # owned rows in one CSR call (its rows count from the ownership range start)
     M = sp.csr_matrix((v[own], (r[own] - r0, c[own])), shape=(r1 - r0, n_global))

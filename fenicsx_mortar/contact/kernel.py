@@ -19,23 +19,49 @@ then to be *added* into the global vector/matrix, which is what scatter-add asse
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import NamedTuple, Tuple
 
 import numpy as np
 
 
-@dataclass
 class NodalContributions:
     """Per-contribution value/grad/hess of a nodal quantity (weighted gap or area) of slave
-    node `node`, depending on local nodes `slave_nodes`/`master_nodes`."""
+    node `node`, depending on local nodes `slave_nodes`/`master_nodes`.
+
+    ``hess`` may be given as a zero-argument callable: it is then computed on first access
+    (the mortar kernel does so for the nodal areas, whose Hessian the contact terms never
+    need). ``cache`` holds derived data of the assembly (e.g. the gradient matrix), valid as
+    long as the arrays are not modified in place.
+    """
 
     node: np.ndarray          # (K,) slave node index (into the slave chain)
     slave_nodes: np.ndarray   # (K, S) slave node indices of the local variables (first 2S coords)
     master_nodes: np.ndarray  # (K, L) master curve-point indices (next 2L local coords)
     value: np.ndarray         # (K,)
     grad: np.ndarray          # (K, m)   m = 2*(S+L), order [xs0, ys0, xs1, ys1, .., xm0, ym0, ..]
-    hess: np.ndarray          # (K, m, m)
+    # hess: np.ndarray        # (K, m, m)  (property, possibly lazy)
+
+    def __init__(self, node, slave_nodes, master_nodes, value, grad, hess):
+        self.node = node
+        self.slave_nodes = slave_nodes
+        self.master_nodes = master_nodes
+        self.value = value
+        self.grad = grad
+        self._hess = hess
+        self.cache: dict = {}
+
+    @property
+    def hess(self) -> np.ndarray:
+        if callable(self._hess):
+            self._hess = self._hess()
+        return self._hess
+
+    @hess.setter
+    def hess(self, h) -> None:
+        self._hess = h
+
+    def __repr__(self) -> str:
+        return f"NodalContributions(size={self.size}, m={self.m})"
 
     @property
     def size(self) -> int:

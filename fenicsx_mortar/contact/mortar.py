@@ -42,6 +42,7 @@ dependence on the coordinates is applied afterwards by the chain rule (exact, ch
 """
 from __future__ import annotations
 
+import functools
 from typing import Sequence, Tuple
 
 import numpy as np
@@ -52,16 +53,25 @@ from .curves import MasterCurve
 from .kernel import NodalContributions, Triplets
 
 
+@functools.lru_cache(maxsize=None)
 def gauss_legendre_01(n: int) -> Tuple[np.ndarray, np.ndarray]:
-    """Gauss–Legendre points and weights on [0, 1] (weights sum to 1)."""
+    """Gauss–Legendre points and weights on [0, 1] (weights sum to 1; cached, read-only)."""
     s, w = np.polynomial.legendre.leggauss(int(n))
-    return 0.5 * (s + 1.0), 0.5 * w
+    s, w = 0.5 * (s + 1.0), 0.5 * w
+    s.setflags(write=False)
+    w.setflags(write=False)
+    return s, w
 
 
-def _interval(xa: Vec2, xb: Vec2, P: Sequence[Vec2], curve: MasterCurve, pm: np.ndarray):
-    """ζ_lo, ζ_hi (jets or arrays) and the boolean 'slave faces master' per pair."""
-    xc, xd = curve.node_points(pm, P)
-    tc, td = curve.node_tangents(pm, P)
+def _interval(xa: Vec2, xb: Vec2, P: Sequence[Vec2], curve: MasterCurve, pm: np.ndarray,
+              nodes=None):
+    """ζ_lo, ζ_hi (jets or arrays) and the boolean 'slave faces master' per pair.
+    ``nodes``: (x_c, x_d, t̄_c, t̄_d) per pair if already known (values; P is then unused)."""
+    if nodes is None:
+        xc, xd = curve.node_points(pm, P)
+        tc, td = curve.node_tangents(pm, P)
+    else:
+        xc, xd, tc, td = nodes
     e = ad.sub(xb, xa)
     den_c = ad.dot(e, tc)
     den_d = ad.dot(e, td)
@@ -80,10 +90,28 @@ def _interval(xa: Vec2, xb: Vec2, P: Sequence[Vec2], curve: MasterCurve, pm: np.
     return lo, hi, facing
 
 
-def _pair_points(slave_x, slave_seg, curve, master_x, ps, pm):
-    seg = np.asarray(slave_seg, dtype=np.int64).reshape(-1, 2)[ps]
-    xs = np.asarray(slave_x, dtype=float)
-    return seg[:, 0], seg[:, 1], xs[seg[:, 0]], xs[seg[:, 1]], curve.local_points(pm, master_x)
+def _node_values(curve: MasterCurve, master_x, pm: np.ndarray):
+    """(x_c, x_d, t̄_c, t̄_d) values per pair, evaluated once per master segment in use
+    (the candidate pairs repeat each master segment many times) and gathered."""
+    n_seg = curve.seg.shape[0]
+    used = np.zeros(n_seg, dtype=bool)
+    used[pm] = True
+    seg_used = np.flatnonzero(used)
+    inv = (np.cumsum(used) - 1)[pm]
+    P = curve.split_points(curve.local_points(seg_used, master_x))
+    xc, xd = curve.node_points(seg_used, P)
+    tc, td = curve.node_tangents(seg_used, P)
+    return tuple((np.asarray(v[0], dtype=float)[inv], np.asarray(v[1], dtype=float)[inv])
+                 for v in (xc, xd, tc, td))
+
+
+def _prepass(xa, xb, curve: MasterCurve, master_x, pm: np.ndarray):
+    """Values (ζ_lo, ζ_hi, keep) of the candidate pairs (slave end points xa, xb (k, 2))."""
+    nodes = _node_values(curve, master_x, pm)
+    lo, hi, facing = _interval((xa[:, 0], xa[:, 1]), (xb[:, 0], xb[:, 1]), None, curve, pm,
+                               nodes)
+    lo, hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
+    return lo, hi, facing & (hi > lo)
 
 
 def segmentation(slave_x: np.ndarray, slave_seg: np.ndarray, curve: MasterCurve,
@@ -98,18 +126,18 @@ def segmentation(slave_x: np.ndarray, slave_seg: np.ndarray, curve: MasterCurve,
     """
     ps = np.asarray(pairs[0], dtype=np.int64)
     pm = np.asarray(pairs[1], dtype=np.int64)
-    _, _, xa, xb, P = _pair_points(slave_x, slave_seg, curve, master_x, ps, pm)
-    lo, hi, facing = _interval((xa[:, 0], xa[:, 1]), (xb[:, 0], xb[:, 1]),
-                               curve.split_points(P), curve, pm)
-    lo, hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
-    return lo, hi, facing & (hi > lo)
+    seg = np.asarray(slave_seg, dtype=np.int64).reshape(-1, 2)[ps]
+    xs = np.asarray(slave_x, dtype=float)
+    return _prepass(xs[seg[:, 0]], xs[seg[:, 1]], curve, master_x, pm)
 
 
 def _pair_block(X: np.ndarray, pm: np.ndarray, curve: MasterCurve, n_gauss: int):
     """Jet kernel for a block of contributing pairs with local coordinates X (K, m).
 
-    Returns the jets (over X) of g̃_a, g̃_b, A_a, A_b, and the values ζ_g, ξ_g (n_gauss, K)
-    and the Gauss weights times the length element (n_gauss, K) for D and M.
+    Returns the jets (over X) of g̃_a, g̃_b, the interval jets (ζ_lo, ζ_hi) (over X), and
+    the values ζ_g, ξ_g (n_gauss, K) and the Gauss weights times the length element
+    (n_gauss, K) for D and M. The nodal areas follow from (ζ_lo, ζ_hi) in closed form
+    (:func:`_areas`).
     """
     L = curve.stencil_size
     v = Jet2.variables(X)
@@ -142,10 +170,40 @@ def _pair_block(X: np.ndarray, pm: np.ndarray, curve: MasterCurve, n_gauss: int)
     I1 = (wg * zeta).sum(0)                      # Σ w ζ g
     gap_b = J * I1
     gap_a = J * I0 - gap_b
-    area_b = J * (z_lo + z_hi) * 0.5             # ∫ ζ dζ over [lo, hi], exact
-    area_a = J - area_b
-    jets = [ad.substitute(q, (lo, hi)) for q in (gap_a, gap_b, area_a, area_b)]
-    return jets, zeta.val, np.broadcast_to(ad.value(xi), zeta.shape), J.val * w
+    jets = [ad.substitute(q, (lo, hi)) for q in (gap_a, gap_b)]
+    return jets, (lo, hi), zeta.val, np.broadcast_to(ad.value(xi), zeta.shape), J.val * w
+
+
+def _area_jets(X: np.ndarray, lo: Jet2, hi: Jet2):
+    """Jets of the nodal areas A_a, A_b of the pairs (exact: ∫ N_j dΓ over [ζ_lo, ζ_hi])."""
+    v = Jet2.variables(X)
+    J = ad.norm(ad.sub((v[2], v[3]), (v[0], v[1]))) * (hi - lo)
+    area_b = J * (lo + hi) * 0.5                 # ∫ ζ dζ over [lo, hi], exact
+    return J - area_b, area_b
+
+
+def _areas(X: np.ndarray, lo: Jet2, hi: Jet2):
+    """Values (2, K) and gradients (2, K, m) of the nodal areas A_a, A_b of the pairs,
+
+        J = |x_b − x_a| (ζ_hi − ζ_lo),   A_b = J (ζ_lo + ζ_hi)/2,   A_a = J − A_b,
+
+    by the product rule from the interval jets (the same as :func:`_area_jets`, without
+    the Hessian work)."""
+    K, m = X.shape
+    d = X[:, 2:4] - X[:, 0:2]
+    e = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
+    de = np.zeros((K, m))
+    de[:, 2:4] = d / e[:, None]
+    de[:, 0:2] = -de[:, 2:4]
+    lv, hv = lo.val, hi.val
+    lg, hg = lo.grad, hi.grad
+    width = hv - lv
+    J = e * width
+    dJ = width[:, None] * de + e[:, None] * (hg - lg)
+    ssum = lv + hv
+    Ab = J * ssum * 0.5
+    dAb = 0.5 * (ssum[:, None] * dJ + J[:, None] * (lg + hg))
+    return np.stack([J - Ab, Ab]), np.stack([dJ - dAb, dAb])
 
 
 def weighted_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarray,
@@ -175,7 +233,11 @@ def weighted_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarr
     pm = np.asarray(pairs[1], dtype=np.int64)
 
     # cheap float pass first: only contributing pairs get the (…, m, m) jet work
-    _, _, keep = segmentation(slave_x, slave_seg, curve, (ps, pm), master_x)
+    seg_s = np.asarray(slave_seg, dtype=np.int64).reshape(-1, 2)
+    xs = np.asarray(slave_x, dtype=float)
+    na, nb = seg_s[ps, 0], seg_s[ps, 1]
+    xa0, xb0 = xs[na], xs[nb]
+    keep = _prepass(xa0, xb0, curve, master_x, pm)[2] if ps.shape[0] else ps.astype(bool)
     ps, pm = ps[keep], pm[keep]
     K = ps.shape[0]
     empty_coo = Triplets(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))
@@ -183,33 +245,47 @@ def weighted_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarr
         e = NodalContributions.empty(2, L)
         return e, NodalContributions.empty(2, L), empty_coo, empty_coo
 
-    na, nb, xa0, xb0, P0 = _pair_points(slave_x, slave_seg, curve, master_x, ps, pm)
+    na, nb = na[keep], nb[keep]
     stencil = curve.stencil(pm)
-    X = np.concatenate([xa0, xb0, P0.reshape(K, 2 * L)], axis=1)
+    X = np.concatenate([xa0[keep], xb0[keep], curve.points(master_x)[stencil].reshape(K, 2 * L)],
+                       axis=1)
 
     # outputs: rows [0, K) for node a, [K, 2K) for node b
     val = np.empty((2, 2 * K))
     grad = np.empty((2, 2 * K, m))
-    hess = np.empty((2, 2 * K, m, m))
+    ghess = np.empty((2 * K, m, m))
     z = np.empty((n_gauss, K))
     xv = np.empty((n_gauss, K))
     Jw = np.empty((n_gauss, K))
+    intervals = []
     for b0 in range(0, K, block):
         b1 = min(b0 + block, K)
-        jets, z[:, b0:b1], xv[:, b0:b1], Jw[:, b0:b1] = _pair_block(X[b0:b1], pm[b0:b1],
-                                                                     curve, n_gauss)
-        for q, (jet_a, jet_b) in enumerate((jets[:2], jets[2:])):
-            for off, jet in ((0, jet_a), (K, jet_b)):
-                val[q, off + b0:off + b1] = jet.val
-                grad[q, off + b0:off + b1] = jet.grad
-                hess[q, off + b0:off + b1] = jet.hess
+        jets, (lo, hi), z[:, b0:b1], xv[:, b0:b1], Jw[:, b0:b1] = _pair_block(
+            X[b0:b1], pm[b0:b1], curve, n_gauss)
+        for off, jet in ((0, jets[0]), (K, jets[1])):
+            val[0, off + b0:off + b1] = jet.val
+            grad[0, off + b0:off + b1] = jet.grad
+            ghess[off + b0:off + b1] = jet.hess
+        av, ag = _areas(X[b0:b1], lo, hi)
+        val[1, b0:b1], val[1, K + b0:K + b1] = av
+        grad[1, b0:b1], grad[1, K + b0:K + b1] = ag
+        intervals.append((b0, b1, lo, hi))
+
+    def area_hessian() -> np.ndarray:
+        # the contact terms need only ∇A: the area Hessian is built on demand
+        H = np.empty((2 * K, m, m))
+        for b0, b1, lo, hi in intervals:
+            area_a, area_b = _area_jets(X[b0:b1], lo, hi)
+            H[b0:b1] = area_a.hess
+            H[K + b0:K + b1] = area_b.hess
+        return H
 
     node = np.concatenate([na, nb])
     slave_nodes = np.tile(np.stack([na, nb], axis=1), (2, 1))
     master_nodes = np.tile(stencil, (2, 1))
-    gap = NodalContributions(node, slave_nodes, master_nodes, val[0], grad[0], hess[0])
+    gap = NodalContributions(node, slave_nodes, master_nodes, val[0], grad[0], ghess)
     area = NodalContributions(node.copy(), slave_nodes.copy(), master_nodes.copy(),
-                              val[1], grad[1], hess[1])
+                              val[1], grad[1], area_hessian)
 
     # mortar matrices (values only), 1-point-per-Gauss sums of N_j N_k and N_j N̂_l
     Na = (1.0 - z) * Jw

@@ -4,8 +4,9 @@ A pair is a candidate when the axis-aligned bounding boxes of the two segments, 
 inflated by ``radius``, overlap: |c_s − c_m| ≤ h_s + h_m + 2·radius on both axes (c box
 centre, h half extent). A k-d tree over the box centres finds every pair whose centres are
 within the Chebyshev distance 2·radius + max h_s + max h_m (a necessary condition), then the
-exact test above is applied vectorized. Cost ~ N log N + (number of candidates) as long as
-segment lengths are comparable; one very long segment widens the tree query for all.
+exact test above is applied vectorized and the pairs are sorted through one integer key.
+Cost ~ N log N + (number of candidates) as long as segment lengths are comparable; one very
+long segment widens the tree query for all.
 """
 from __future__ import annotations
 
@@ -39,9 +40,14 @@ def candidate_pairs(xs: np.ndarray, seg_s: np.ndarray, xm: np.ndarray, seg_m: np
     reach *= 1.0 + 1e-12
     found = cKDTree(cs).sparse_distance_matrix(cKDTree(cm), reach, p=np.inf,
                                                output_type="ndarray")
-    i = found["i"].astype(np.int64)
-    j = found["j"].astype(np.int64)
-    overlap = np.all(np.abs(cs[i] - cm[j]) <= hs[i] + hm[j] + 2.0 * radius, axis=1)
-    i, j = i[overlap], j[overlap]
-    order = np.lexsort((j, i))
-    return i[order], j[order]
+    i = found["i"]
+    j = found["j"]
+    # exact box test per axis on contiguous columns (cheaper than a (n, 2) all())
+    r2 = 2.0 * radius
+    ok = np.abs(cs[i, 0] - cm[j, 0]) <= hs[i, 0] + hm[j, 0] + r2
+    ok &= np.abs(cs[i, 1] - cm[j, 1]) <= hs[i, 1] + hm[j, 1] + r2
+    # sorted by (slave, master) through one integer key
+    nm = np.int64(cm.shape[0])
+    key = i[ok].astype(np.int64) * nm + j[ok]
+    key.sort()
+    return key // nm, key % nm
