@@ -28,14 +28,14 @@ from _common import HARD, assert_stable, contact, run_scene
 EXACT = 1e-6  # uniform-pressure cases: max |p/P - 1| and osc
 
 
-def stable(label: str, max_osc: float | None):
+def check_stable(label: str, max_osc: float | None):
     run = get(label)
     nmax, cmax = BOUNDS[label]
     assert_stable(run, nmax, cmax, max_osc)
     return run
 
 
-def uniform(run, P: float = 1.0) -> None:
+def check_uniform(run, P: float = 1.0) -> None:
     """Every active slave node carries the exact pressure P, every step's last state."""
     d = run.interfaces[-1]
     on = d["pressure"] > 0
@@ -47,7 +47,7 @@ def uniform(run, P: float = 1.0) -> None:
 def test_case01_grazing_approach_converges():
     """Tool arc slides into contact at a grazing angle: converged, finite, <= 40 Newton
     iterations per step, <= 1 cut; contact does start and the tool is pushed up."""
-    run = stable("1 grazing", None)
+    run = check_stable("1 grazing", None)
     assert contact(run, 0)["active_nodes"] == 0
     assert contact(run)["active_nodes"] >= 3
     assert contact(run)["force_on_slave"][1] > 0
@@ -59,7 +59,7 @@ def test_case01_grazing_approach_converges():
     "block must give a single-humped (Hertz) pressure"))
 def test_case01_grazing_approach_pressure_single_humped():
     """Reference: a Hertzian profile has osc = 0; bound 0.2 (a dip of 10 % of p_max)."""
-    stable("1 grazing", 0.2)
+    check_stable("1 grazing", 0.2)
 
 
 # ---------------------------------------------------------------------------- 2 ties
@@ -67,8 +67,8 @@ def test_case01_grazing_approach_pressure_single_humped():
 def test_case02_projection_ties(label):
     """Slave nodes exactly on master nodes / segment ends: exact uniform pressure 1
     (homogeneous state), osc <= 1e-6, <= 30 (2a) / 40 (2b) Newton iterations per step."""
-    run = stable(label, EXACT)
-    uniform(run)
+    run = check_stable(label, EXACT)
+    check_uniform(run)
 
 
 @pytest.mark.xfail(strict=True, reason=(
@@ -81,7 +81,7 @@ def test_case02_slave_beyond_master_end():
     """A plate overhanging the master on both sides: converged, finite; the nodal pressure
     stays bounded: max p <= 20 x the mean contact pressure (the physical corner peak of an
     elastic wedge is integrable; 20 is generous for h = 0.125)."""
-    run = stable("2c slave beyond master", None)
+    run = check_stable("2c slave beyond master", None)
     for d in run.interfaces:
         on = d["pressure"] > 0
         mean = 1.0  # total load / loaded width of the master (1 x 2 / ~2 ... order 1)
@@ -93,7 +93,7 @@ SMOOTH_OK = ("none", "hermite", "bspline")
 
 
 def _case03(smoothing):
-    run = stable(f"3 half-rings {smoothing}", None)
+    run = check_stable(f"3 half-rings {smoothing}", None)
     assert contact(run)["active_nodes"] >= 3
     if smoothing != "none":
         # smoothing must not add oscillation: at every common pseudo-time its osc is at
@@ -135,7 +135,7 @@ def test_case04_stick_slip_stick_with_reversal():
     Oscillation <= that of the mu -> 0 run on the same meshes (case 9b) + 0.25 (the block's
     pressure is a flat-punch profile with corner peaks, osc ~1.4 even without friction)."""
     ref = get("9b mu = 1e-6")
-    run = stable("4 stick-slip-stick", ref.osc + 0.25)
+    run = check_stable("4 stick-slip-stick", ref.osc + 0.25)
     mu, steps = 0.3, run.result.steps
     status = {round(s["time"], 6): d["status"][d["pressure"] > 0]
               for s, d in zip(steps, run.interfaces)}
@@ -160,7 +160,7 @@ def test_case05_liftoff_and_recontact():
     re-contact force is within 20 % of the first (same indentation; the first press is 1.2
     from the substrate's free left end, the second 2.7, so the first is a little softer:
     31.9 vs 36.5 when written)."""
-    run = stable("5 lift-off/re-contact", None)
+    run = check_stable("5 lift-off/re-contact", None)
     by_t = {round(s["time"], 6): k for k, s in enumerate(run.result.steps)}
     first, lifted, again = (contact(run, by_t[t]) for t in (1.0, 2.0, 3.0))
     assert first["active_nodes"] >= 3 and again["active_nodes"] >= 3
@@ -173,15 +173,15 @@ def test_case05_liftoff_and_recontact():
     "nodes carry p = [2.1, 192, 81, 193] (osc 1.15 > 0.2)"))
 def test_case05_pressure_single_humped():
     """Reference: a Hertzian profile has osc = 0; bound 0.2."""
-    stable("5 lift-off/re-contact", 0.2)
+    check_stable("5 lift-off/re-contact", 0.2)
 
 
 # ---------------------------------------------------------------------------- 6 huge penalty
 def test_case06_huge_penalty_alm_converges():
     """epsilon = 1e10 (1e6 E/h) with ALM: converged, finite, <= 30 Newton iterations per
     step, no cut, and the exact uniform pressure 1 (osc <= 1e-6)."""
-    run = stable("6a huge eps, ALM", EXACT)
-    uniform(run)
+    run = check_stable("6a huge eps, ALM", EXACT)
+    check_uniform(run)
 
 
 def test_case06_huge_penalty_penalty_warns():
@@ -202,8 +202,8 @@ def test_case07_initial_penetration_one_element():
     """Upper block starting 0.1 = one slave element inside the lower one: converged,
     finite, <= 30 Newton iterations per step, no cut, the exact homogeneous answer
     (pressure 1, osc <= 1e-6) and the upper block pushed out (its bottom back at y ~ 1)."""
-    run = stable("7 initial penetration", EXACT)
-    uniform(run)
+    run = check_stable("7 initial penetration", EXACT)
+    check_uniform(run)
     d = run.interfaces[-1]
     assert np.all(np.abs(d["y"] - 1.0) < 5e-3)
 
@@ -213,8 +213,8 @@ def test_case07_initial_penetration_one_element():
 def test_case08_density_ratio_1_to_10(label):
     """Patch test with element sizes 0.05 vs 0.5 across the interface, both ways round:
     converged, finite, <= 20 Newton iterations per step, no cut, exact pressure 1."""
-    run = stable(label, EXACT)
-    uniform(run)
+    run = check_stable(label, EXACT)
+    check_uniform(run)
 
 
 # ---------------------------------------------------------------------------- 9 friction limits
@@ -223,7 +223,7 @@ def test_case09_high_friction_mu_1():
     |t_T| = mu p node by node and tangential = normal force. Oscillation <= the mu -> 0 run's
     + 0.25 (same meshes, flat-punch profile)."""
     ref = get("9b mu = 1e-6")
-    run = stable("9a mu = 1.0", ref.osc + 0.25)
+    run = check_stable("9a mu = 1.0", ref.osc + 0.25)
     d, c = run.interfaces[-1], contact(run)
     on = d["pressure"] > 0
     assert np.all(d["status"][on] == "slip")
@@ -236,7 +236,7 @@ def test_case09_vanishing_friction_matches_frictionless():
     """mu = 1e-6: converged, finite, <= 36 Newton iterations per step, no cut, and the
     displacement equals the frictionless run's to 1e-4 relative."""
     from fenicsx_mortar import Friction, load_scene
-    run = stable("9b mu = 1e-6", None)
+    run = check_stable("9b mu = 1e-6", None)
     scene = load_scene(HARD / "c09b_vanishing_friction.toml")
     scene.contacts[0].friction = Friction()
     ref = run_scene(scene, name="9b frictionless")
@@ -282,7 +282,7 @@ def test_case11_no_false_convergence():
     accepted state satisfies all three criteria: |R| <= atol, |R| <= rtol |R0|, KKT <= the
     ALM tolerance; and the pressure is the exact P (not a multiple of it)."""
     from fenicsx_mortar import load_scene
-    run = stable("11 touching, huge R0", EXACT)
+    run = check_stable("11 touching, huge R0", EXACT)
     scene = load_scene(HARD / "c11_touching_huge_residual.toml")
     step = run.result.steps[-1]
     r = step["residuals"]
@@ -290,7 +290,7 @@ def test_case11_no_false_convergence():
     assert r[-1] <= scene.solver.atol
     assert r[-1] <= scene.solver.rtol * r[0]
     assert contact(run)["kkt_residual"] <= scene.contacts[0].enforcement.tolerance
-    uniform(run, P=1000.0)
+    check_uniform(run, P=1000.0)
 
 
 def test_case11_iteration_limit_is_a_failure_not_a_convergence():
@@ -317,4 +317,4 @@ def test_case11_relative_decrease_alone_does_not_converge():
         assert run.converged, run.result.message
         for s in run.result.steps:
             assert s["residuals"][-1] <= atol and s["residuals"][-1] <= rtol * s["residuals"][0]
-        uniform(run, P=1000.0)
+        check_uniform(run, P=1000.0)
