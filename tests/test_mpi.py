@@ -20,10 +20,7 @@ SCENES = {
                                                   ("clamped_block", 3, 1e-10),
                                                   ("patch_test", 2, 1e-8),
                                                   ("patch_test", 3, 1e-8),
-                                                  pytest.param("hertz", 2, 1e-8, marks=pytest.mark.xfail(
-                                                      reason="since the per-node ALM growth and kernel caching "
-                                                      "commits, Hertz n=2 differs from serial by 1e-3 relative "
-                                                      "(patch test still equal to 1e-8): open bug"))])
+                                                  ("hertz", 2, 1e-8)])
 def test_mpi_equals_serial(scene_name, ranks, tol, tmp_path):
     """Bulk alone to 1e-10; with contact to 1e-8 relative; same Newton iterations."""
     text = (ROOT / f"demos/scenes/{scene_name}.toml").read_text()
