@@ -79,16 +79,20 @@ class PairHook:
 
     def _evaluate(self, xs, xm) -> dict:
         s, m = self.slave, self.master
-        pairs = candidate_pairs(xs, s.seg, xm, m.seg, self.radius)
-        if not self.my_segments.all():
-            keep = self.my_segments[pairs[0]]
-            pairs = (pairs[0][keep], pairs[1][keep])
-        curve = self._curve.with_nodes(xm)
-        if self.pair.method == "mortar":
-            gap, area, _, _ = mortar.weighted_gaps(xs, s.seg, xm, m.seg, curve, pairs,
-                                                   self.pair.n_gauss)
-        else:
-            gap, area = nts.node_gaps(xs, s.seg, xm, m.seg, curve, pairs, self._nts_segment)
+        with self.timings("contact_search"):
+            pairs = candidate_pairs(xs, s.seg, xm, m.seg, self.radius)
+            if not self.my_segments.all():
+                keep = self.my_segments[pairs[0]]
+                pairs = (pairs[0][keep], pairs[1][keep])
+        # projection and integration are one vectorized pass (kernel = both)
+        with self.timings("contact_kernel"):
+            curve = self._curve.with_nodes(xm)
+            if self.pair.method == "mortar":
+                gap, area, _, _ = mortar.weighted_gaps(xs, s.seg, xm, m.seg, curve, pairs,
+                                                       self.pair.n_gauss)
+            else:
+                gap, area = nts.node_gaps(xs, s.seg, xm, m.seg, curve, pairs,
+                                          self._nts_segment)
         g, A = self._owned_sum(nodal_sum(gap, s.n)), self._owned_sum(nodal_sum(area, s.n))
         p, active = self.enforcement.pressure(g, A)
         st = dict(xs=xs, xm=xm, gap=gap, area=area, g=g, A=A, p=p, active=active,
@@ -161,7 +165,8 @@ class PairHook:
         f = -(self._G().T @ (st["p"] * self.mine))
         if self.friction is not None:
             f = f + self._friction_terms(tangent=False)[0]
-        assembly.add_to_vector(b, self.dofs, self._to_nodes(f))
+        with self.timings("contact_insertion"):
+            assembly.add_to_vector(b, self.dofs, self._to_nodes(f))
 
     def add_jacobian(self, A, bc_dofs) -> None:
         st = self.state
@@ -179,8 +184,9 @@ class PairHook:
                                        touching=touching)
         if self.friction is not None:
             K = K + self._friction_terms(tangent=True)[1]
-        assembly.add_to_matrix(A, self._to_nodes(K=K), self.dofs, self._skip_dofs(bc_dofs),
-                               self.n_global)
+        with self.timings("contact_insertion"):
+            assembly.add_to_matrix(A, self._to_nodes(K=K), self.dofs,
+                                   self._skip_dofs(bc_dofs), self.n_global)
 
     def _skip_dofs(self, bc_dofs) -> np.ndarray:
         if self._skip is None:
