@@ -154,13 +154,41 @@ def hessian_sum(c: NodalContributions, weight: np.ndarray, n_slave: int,
     return sp.coo_matrix((vals, (rows, cols)), shape=(n_coords, n_coords))
 
 
+def test_matrix(gap: NodalContributions, n_slave: int, n_test: int) -> sp.csr_matrix:
+    """Rows T_j (the Petrov–Galerkin test vectors ``gap.test``, mortar.py) over the stacked
+    node coordinates (n_test = 2 (n_slave + n_master)); cached on ``gap``."""
+    key = ("T", n_slave, n_test)
+    hit = gap.cache.get(key)
+    if hit is None:
+        t = gap.test
+        hit = gap.cache[key] = _csr(t.grad.ravel(), np.repeat(gap.node, 8),
+                                    t.global_indices(n_slave).ravel(), (n_slave, n_test))
+    return hit
+
+
+def _test_jacobian_triplets(gap: NodalContributions, weight: np.ndarray, n_slave: int):
+    """(rows, cols, vals) of Σ_k weight[node_k] ∂T_k/∂x: rows in the node coordinates of
+    the test vectors, columns in the gap's local (curve-point) coordinates."""
+    keep = np.flatnonzero(weight[gap.node] != 0.0)
+    t = gap.test
+    rg = t.global_indices(n_slave)[keep]
+    cg = _gidx(gap, n_slave)[keep]
+    vals = t.jac[keep] * weight[gap.node[keep], None, None]
+    rows = np.broadcast_to(rg[:, :, None], vals.shape).ravel()
+    cols = np.broadcast_to(cg[:, None, :], vals.shape).ravel()
+    return rows, cols, vals.ravel()
+
+
 def _tangent(gap: NodalContributions, area: NodalContributions, d1: np.ndarray,
              d2: np.ndarray, hw: np.ndarray, n_slave: int, n_coords: int,
-             G: sp.csr_matrix) -> sp.coo_matrix:
+             G: sp.csr_matrix, left: sp.csr_matrix | None = None) -> sp.coo_matrix:
     """Σ_j d1_j ∇g̃_j ⊗ ∇g̃_j − d2_j ∇g̃_j ⊗ ∇A_j − Σ_k hw[node_k] ∇²g̃_k, i.e.
     Gᵀ (D1 G − D2 G_A) − H, as COO triplets with repeated entries (summed on insertion;
-    ``tocsr()`` sums them too)."""
-    shape = (n_coords, n_coords)
+    ``tocsr()`` sums them too). With test vectors (``left`` = their matrix T, rows over the
+    node coordinates): Tᵀ (D1 G − D2 G_A) − Σ_k hw[node_k] ∂T_k/∂x."""
+    shape = (n_coords if left is None else left.shape[1], n_coords)
+    if left is None:
+        left = G
     on = (d1 != 0.0) | (d2 != 0.0)
     parts_r, parts_c, parts_v = [], [], []
     if gap.size and on.any():
@@ -179,10 +207,13 @@ def _tangent(gap: NodalContributions, area: NodalContributions, d1: np.ndarray,
             cols.append(ga.ravel())
         C = _csr(np.concatenate(vals), np.concatenate(rows), np.concatenate(cols),
                  (n_slave, n_coords))
-        K1 = (G.T @ C).tocoo()
+        K1 = (left.T @ C).tocoo()
         parts_r.append(K1.row), parts_c.append(K1.col), parts_v.append(K1.data)
     if gap.size and np.any(hw[gap.node] != 0.0):
-        r, c, v = _hessian_triplets(gap, hw, n_slave)
+        if gap.test is None:
+            r, c, v = _hessian_triplets(gap, hw, n_slave)
+        else:
+            r, c, v = _test_jacobian_triplets(gap, hw, n_slave)
         parts_r.append(r), parts_c.append(c), parts_v.append(-v)
     if not parts_r:
         return sp.coo_matrix(shape)
@@ -193,24 +224,31 @@ def _tangent(gap: NodalContributions, area: NodalContributions, d1: np.ndarray,
 def contact_terms(gap: NodalContributions, area: NodalContributions, enforcement,
                   n_slave: int, n_coords: int, weight: np.ndarray | None = None,
                   tangent: bool = True, touching: np.ndarray | None = None,
-                  G: sp.spmatrix | None = None):
+                  G: sp.spmatrix | None = None, n_test: int | None = None):
     """(g̃, A, p, active, R, K) over the stacked coordinates; ``weight`` (0/1 per slave
     node) selects the nodes whose terms this rank inserts; ``touching`` marks extra nodes
     that get the penalty stiffness in K (see PairHook.add_jacobian); ``G`` the gap's
-    :func:`gradient_matrix` if already built (it is cached on ``gap`` anyway)."""
+    :func:`gradient_matrix` if already built (it is cached on ``gap`` anyway).
+
+    With test vectors on ``gap`` (Hermite/B-spline masters, mortar.py) R and the rows of K
+    are over the stacked NODE coordinates (size ``n_test``), K's columns over the curve's
+    coordinates (n_coords)."""
     g, A = nodal_sum(gap, n_slave), nodal_sum(area, n_slave)
     p, active = enforcement.pressure(g, A)
     w = np.ones(n_slave) if weight is None else weight
     if G is None:
         G = gradient_matrix(gap, n_slave, n_coords)
-    R = -(G.T @ (p * w))
+    left = None
+    if gap.test is not None:
+        left = test_matrix(gap, n_slave, n_coords if n_test is None else n_test)
+    R = -((G if left is None else left).T @ (p * w))
     K = None
     if tangent:
         eps = enforcement.epsilon
         act = (active if touching is None else active | touching) * w
         As = np.where(A > 0, A, 1.0)
         K = _tangent(gap, area, act * eps / As, act * eps * g / As**2, p * w, n_slave,
-                     n_coords, G)
+                     n_coords, G, left)
     return g, A, p, active, R, K
 
 

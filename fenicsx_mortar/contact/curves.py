@@ -55,6 +55,11 @@ class MasterCurve(abc.ABC):
     continuous_normal: bool = False
     #: sparse (n_points, n_nodes) map from node to curve-point coordinates; None: identity
     point_map = None
+    #: the mortar kernel tests the contact traction on the master with the master's own
+    #: linear shape functions N̂ (c, d) instead of the variation of the curve (see
+    #: :mod:`.mortar`, "Master-side test functions"): set where the curve between two
+    #: nodes depends on more than those two nodes
+    hat_test: bool = False
 
     def __init__(self, x: np.ndarray, seg: np.ndarray):
         self.x = np.asarray(x, dtype=float)
@@ -148,9 +153,16 @@ class MasterCurve(abc.ABC):
         Subclasses may shortcut this (the polyline does); the returned ξ̄ may then be
         values only — it is used for the mortar matrix M, not differentiated.
         """
+        g, xi, _ = self.gap_frame(seg_index, xs, P)
+        return g, xi
+
+    def gap_frame(self, seg_index, xs: Vec2, P: Sequence[Vec2]) -> Tuple[Scalar, Scalar, Vec2]:
+        """(g, ξ̄, n(ξ̄)): the gap of :meth:`gap` with its projection and the unit normal,
+        all differentiable."""
         xi = self.project(seg_index, xs, P)
         x_m, a_m = self.derivatives(seg_index, xi, P, 1)
-        return ad.dot(ad.sub(xs, x_m), self.normal_at(seg_index, xi, P, a_m)), xi
+        n = self.normal_at(seg_index, xi, P, a_m)
+        return ad.dot(ad.sub(xs, x_m), n), xi, n
 
 
 def _horner_derivatives(C: Sequence[Vec2], xi, order: int) -> list:
@@ -334,6 +346,7 @@ class Hermite(_NeighbourStencil):
     """
 
     continuous_normal = True
+    hat_test = True
 
     def derivatives(self, seg_index, xi, P, order):
         _, c, d = P[0], P[1], P[2]
@@ -569,6 +582,7 @@ class BSpline(MasterCurve):
 
     stencil_size = 6
     continuous_normal = True
+    hat_test = True
 
     def __init__(self, x, seg, parametrization: BSplineParametrization | None = None):
         super().__init__(x, seg)

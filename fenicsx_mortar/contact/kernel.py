@@ -49,6 +49,9 @@ class NodalContributions:
         self.grad = grad
         self._hess = hess
         self.cache: dict = {}
+        #: Petrov–Galerkin test vectors replacing ∇value as the direction of the force
+        #: (:class:`MasterTest`); None: the force is −p ∇value (variational)
+        self.test: MasterTest | None = None
 
     @property
     def hess(self) -> np.ndarray:
@@ -83,6 +86,26 @@ class NodalContributions:
         ``[slave_x.ravel(), master_x.ravel()]`` (slave node i -> 2i, 2i+1; master node l ->
         2 n_slave + 2l, 2 n_slave + 2l + 1)."""
         nodes = np.concatenate([self.slave_nodes, self.master_nodes + n_slave], axis=1)
+        return np.stack([2 * nodes, 2 * nodes + 1], axis=2).reshape(nodes.shape[0], -1)
+
+
+class MasterTest(NamedTuple):
+    """Petrov–Galerkin test vectors of a weighted gap (see :mod:`.mortar`, "Master-side test
+    functions"), one row per contribution of the gap they belong to (same order):
+
+        T_k = ∂Ψ_k/∂v,  Ψ_k = ∫ N_j (v_a N_a + v_b N_b − v_c N̂_c(ξ) − v_d N̂_d(ξ))·n dΓ,
+
+    over the virtual displacements v of the slave segment's nodes (a, b) and of the master
+    segment's nodes (c, d) — master NODES, not curve points — and ``jac`` = ∂T_k/∂(local
+    coordinates of the gap contribution) for the tangent."""
+
+    nodes: np.ndarray   # (K, 4) slave a, slave b (slave chain), master c, master d (master nodes)
+    grad: np.ndarray    # (K, 8) T_k over [v_a, v_b, v_c, v_d] (x, y each)
+    jac: np.ndarray     # (K, 8, m)
+
+    def global_indices(self, n_slave: int) -> np.ndarray:
+        """(K, 8) positions in the stacked NODE coordinates [slave nodes, master nodes]."""
+        nodes = self.nodes + np.array([0, 0, n_slave, n_slave])
         return np.stack([2 * nodes, 2 * nodes + 1], axis=2).reshape(nodes.shape[0], -1)
 
 

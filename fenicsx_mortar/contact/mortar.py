@@ -33,6 +33,23 @@ For a candidate pair (slave segment s = [x_a, x_b], master segment m = [x_c, x_d
 4. Mortar matrices (values only): D_jk = ∫ N_j N_k dΓ, M_jl = ∫ N_j N̂_l(ξ) dΓ with the
    master's linear shape functions N̂ = (1−ξ, ξ) on the segment's nodes (c, d).
 
+Master-side test functions (curves with ``hat_test``: Hermite, B-spline). The variational
+force −p_j ∇g̃_j tests the traction with the variation of the *smoothed* curve, δx_m(ξ) =
+Σ ∂x_m/∂P δP, whose averaged tangents reach the neighbouring nodes: on a flat master these
+terms do not cancel where the contact zone ends or the segment lengths change, and the
+contact patch test fails (σ_yy error 2e-2, docs/smoothing.md). The master body's own
+displacement along its boundary is linear between its nodes, so these curves are used for
+the geometry only (ξ, n, and g̃_j, hence p_j) and the traction is tested with the master's
+linear shape functions, as in the standard mortar force f = D p n − Mᵀ p n:
+
+    R = −Σ_j p_j T_j,   T_j = ∫ N_j (δx_s − N̂_c(ξ) δx_c − N̂_d(ξ) δx_d)·n dΓ,
+    K = Σ_j T_j ⊗ ∇p_j + p_j ∂T_j/∂x     (unsymmetric; exact, by the same jets).
+
+On a flat master the smoothed curve is the polyline with its linear parametrization, so
+T_j is the polyline's and the patch test is passed exactly; the forces on slave and master
+still balance (Σ N = Σ N̂ = 1). T_j and ∂T_j/∂x come from Ψ_j = T_j·v, differentiated with
+v as 8 extra variables (∂T/∂x = ∂²Ψ/∂v∂x): :class:`~.kernel.MasterTest`.
+
 All of g̃_j and A_j is computed with :class:`~.ad.Jet2` over the pair's local coordinates
 [x_a, y_a, x_b, y_b, then the L stencil points of the master segment (nodes, or the
 B-spline's control points)], vectorized over
@@ -50,7 +67,7 @@ import numpy as np
 from . import ad
 from .ad import Jet2, Vec2
 from .curves import MasterCurve
-from .kernel import NodalContributions, Triplets
+from .kernel import MasterTest, NodalContributions, Triplets
 
 
 @functools.lru_cache(maxsize=None)
@@ -131,15 +148,21 @@ def segmentation(slave_x: np.ndarray, slave_seg: np.ndarray, curve: MasterCurve,
     return _prepass(xs[seg[:, 0]], xs[seg[:, 1]], curve, master_x, pm)
 
 
-def _pair_block(X: np.ndarray, pm: np.ndarray, curve: MasterCurve, n_gauss: int):
+def _pair_block(X: np.ndarray, pm: np.ndarray, curve: MasterCurve, n_gauss: int,
+                test: bool = False):
     """Jet kernel for a block of contributing pairs with local coordinates X (K, m).
 
     Returns the jets (over X) of g̃_a, g̃_b, the interval jets (ζ_lo, ζ_hi) (over X), and
     the values ζ_g, ξ_g (n_gauss, K) and the Gauss weights times the length element
     (n_gauss, K) for D and M. The nodal areas follow from (ζ_lo, ζ_hi) in closed form
-    (:func:`_areas`).
+    (:func:`_areas`). With ``test``, the jets run over [X, v] with 8 virtual displacements
+    v = (v_a, v_b, v_c, v_d) appended (value 0) and two more jets Ψ_a, Ψ_b are returned
+    (the Petrov–Galerkin test functionals of the module docstring).
     """
     L = curve.stencil_size
+    m = X.shape[1]
+    if test:
+        X = np.concatenate([X, np.zeros((X.shape[0], 8))], axis=1)
     v = Jet2.variables(X)
     xa, xb = (v[0], v[1]), (v[2], v[3])
     P = [(v[4 + 2 * i], v[5 + 2 * i]) for i in range(L)]
@@ -163,14 +186,24 @@ def _pair_block(X: np.ndarray, pm: np.ndarray, curve: MasterCurve, n_gauss: int)
     s, w = s[:, None], w[:, None]
     zeta = z_lo + width * s
     x_s = ad.add(xa, ad.scale(ad.sub(xb, xa), zeta))
-    g, xi = curve.gap(pm[None, :], x_s, P)
+    if test:
+        g, xi, n = curve.gap_frame(pm[None, :], x_s, P)
+    else:
+        g, xi = curve.gap(pm[None, :], x_s, P)
 
-    wg = g * w
-    I0 = wg.sum(0)                               # Σ w g
-    I1 = (wg * zeta).sum(0)                      # Σ w ζ g
-    gap_b = J * I1
-    gap_a = J * I0 - gap_b
-    jets = [ad.substitute(q, (lo, hi)) for q in (gap_a, gap_b)]
+    def nodal(f):                                # (∫ N_a f dΓ, ∫ N_b f dΓ) as jets
+        wf = f * w
+        fb = J * (wf * zeta).sum(0)
+        return [ad.substitute(q, (lo, hi)) for q in (J * wf.sum(0) - fb, fb)]
+
+    jets = nodal(g)
+    if test:
+        va, vb, vc, vd = [(vz[2 + m + 2 * i], vz[3 + m + 2 * i]) for i in range(4)]
+        # δx_s(ζ) − Σ N̂_l(ξ) δx_l with δx → v: linear in v
+        dv = ad.sub(ad.add(va, ad.scale(ad.sub(vb, va), zeta)),
+                    ad.add(vc, ad.scale(ad.sub(vd, vc), xi)))
+        jets += nodal(ad.dot(dv, n))
+        lo, hi = (Jet2(q.val, q.grad[:, :m], q.hess[:, :m, :m]) for q in (lo, hi))
     return jets, (lo, hi), zeta.val, np.broadcast_to(ad.value(xi), zeta.shape), J.val * w
 
 
@@ -257,15 +290,23 @@ def weighted_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarr
     z = np.empty((n_gauss, K))
     xv = np.empty((n_gauss, K))
     Jw = np.empty((n_gauss, K))
+    test = curve.hat_test
+    if test:
+        tgrad = np.empty((2 * K, 8))
+        tjac = np.empty((2 * K, 8, m))
     intervals = []
     for b0 in range(0, K, block):
         b1 = min(b0 + block, K)
         jets, (lo, hi), z[:, b0:b1], xv[:, b0:b1], Jw[:, b0:b1] = _pair_block(
-            X[b0:b1], pm[b0:b1], curve, n_gauss)
+            X[b0:b1], pm[b0:b1], curve, n_gauss, test)
         for off, jet in ((0, jets[0]), (K, jets[1])):
             val[0, off + b0:off + b1] = jet.val
-            grad[0, off + b0:off + b1] = jet.grad
-            ghess[off + b0:off + b1] = jet.hess
+            grad[0, off + b0:off + b1] = jet.grad[:, :m]
+            ghess[off + b0:off + b1] = jet.hess[:, :m, :m]
+        if test:
+            for off, jet in ((0, jets[2]), (K, jets[3])):
+                tgrad[off + b0:off + b1] = jet.grad[:, m:]
+                tjac[off + b0:off + b1] = jet.hess[:, m:, :m]
         av, ag = _areas(X[b0:b1], lo, hi)
         val[1, b0:b1], val[1, K + b0:K + b1] = av
         grad[1, b0:b1], grad[1, K + b0:K + b1] = ag
@@ -284,13 +325,15 @@ def weighted_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarr
     slave_nodes = np.tile(np.stack([na, nb], axis=1), (2, 1))
     master_nodes = np.tile(stencil, (2, 1))
     gap = NodalContributions(node, slave_nodes, master_nodes, val[0], grad[0], ghess)
+    mc, md = master_seg[pm, 0], master_seg[pm, 1]
+    if test:
+        gap.test = MasterTest(np.tile(np.stack([na, nb, mc, md], axis=1), (2, 1)), tgrad, tjac)
     area = NodalContributions(node.copy(), slave_nodes.copy(), master_nodes.copy(),
                               val[1], grad[1], area_hessian)
 
     # mortar matrices (values only), 1-point-per-Gauss sums of N_j N_k and N_j N̂_l
     Na = (1.0 - z) * Jw
     Nb = z * Jw
-    mc, md = master_seg[pm, 0], master_seg[pm, 1]
     D = Triplets(np.concatenate([na, na, nb, nb]), np.concatenate([na, nb, na, nb]),
                  np.concatenate([(Na * (1.0 - z)).sum(0), (Na * z).sum(0),
                                  (Nb * (1.0 - z)).sum(0), (Nb * z).sum(0)]))

@@ -111,11 +111,24 @@ class PairHook:
                           format="csr")
         return dict(n_coords=T.shape[0], T=T)
 
-    def _to_nodes(self, f=None, K=None):
+    def _to_nodes(self, f=None, K=None, rows_in_nodes: bool = False):
+        """Vectors and matrices over [slave, curve points] → over [slave, master nodes]
+        (``rows_in_nodes``: K's rows already are, as with test vectors)."""
         T = self.state["T"]
         if T is None:
             return f if K is None else K
-        return T.T @ f if K is None else T.T @ K @ T
+        if K is None:
+            return T.T @ f
+        return K @ T if rows_in_nodes else T.T @ K @ T
+
+    def _normal_force(self, weight: np.ndarray) -> np.ndarray:
+        """−Σ_j weight_j p_j ∇g̃_j (or −Σ_j weight_j p_j T_j with test vectors) over the
+        stacked node coordinates."""
+        st = self.state
+        if st["gap"].test is not None:
+            T = assembly.test_matrix(st["gap"], self.slave.n, self.dofs.shape[0])
+            return -(T.T @ (st["p"] * weight))
+        return self._to_nodes(-(self._G().T @ (st["p"] * weight)))
 
     def _tangential(self, xs, xm, curve, pairs, p, active) -> dict:
         """Projections of the slave nodes, slips since their reference points, return map."""
@@ -161,12 +174,11 @@ class PairHook:
             tangent)
 
     def add_residual(self, b, bc_dofs) -> None:
-        st = self.state
-        f = -(self._G().T @ (st["p"] * self.mine))
+        f = self._normal_force(self.mine)
         if self.friction is not None:
-            f = f + self._friction_terms(tangent=False)[0]
+            f = f + self._to_nodes(self._friction_terms(tangent=False)[0])
         with self.timings("contact_insertion"):
-            assembly.add_to_vector(b, self.dofs, self._to_nodes(f))
+            assembly.add_to_vector(b, self.dofs, f)
 
     def add_jacobian(self, A, bc_dofs) -> None:
         st = self.state
@@ -181,12 +193,12 @@ class PairHook:
             self._first_jacobian = False
         *_, K = assembly.contact_terms(st["gap"], st["area"], self.enforcement, self.slave.n,
                                        st["n_coords"], self.mine.astype(float),
-                                       touching=touching)
+                                       touching=touching, n_test=self.dofs.shape[0])
+        K = self._to_nodes(K=K, rows_in_nodes=st["gap"].test is not None)
         if self.friction is not None:
-            K = K + self._friction_terms(tangent=True)[1]
+            K = K + self._to_nodes(K=self._friction_terms(tangent=True)[1])
         with self.timings("contact_insertion"):
-            assembly.add_to_matrix(A, self._to_nodes(K=K), self.dofs,
-                                   self._skip_dofs(bc_dofs), self.n_global)
+            assembly.add_to_matrix(A, K, self.dofs, self._skip_dofs(bc_dofs), self.n_global)
 
     def _skip_dofs(self, bc_dofs) -> np.ndarray:
         if self._skip is None:
@@ -297,7 +309,7 @@ class PairHook:
     def record(self) -> dict:
         st = self.state
         # force the master exerts on the slave body = −(contact residual on slave dofs)
-        f = (self._G().T @ (st["p"] * self.mine))[: 2 * self.slave.n].reshape(-1, 2).sum(axis=0)
+        f = -self._normal_force(self.mine)[: 2 * self.slave.n].reshape(-1, 2).sum(axis=0)
         f = self.comm.allreduce(f, op=MPI.SUM) if self.comm.size > 1 else f
         on = st["p"] > 0
         extra = {}

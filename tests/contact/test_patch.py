@@ -24,10 +24,13 @@ def test_nts_fails_patch_test(cell):
     assert stress_error > 1e-3
 
 
-@pytest.mark.parametrize("smoothing", ["averaged-simple", "averaged-weighted", "averaged-tangent"])
-def test_mortar_patch_test_with_averaged_normals(smoothing):
-    """A flat master: the averaged normals equal the segment normals, so smoothing must not
-    spoil the exact transmission of the uniform pressure."""
+@pytest.mark.parametrize("smoothing", ["averaged-simple", "averaged-weighted", "averaged-tangent",
+                                       "hermite", "bspline"])
+def test_mortar_patch_test_with_smoothing(smoothing):
+    """A flat master: every smoothed curve is the straight line (averaged normals equal the
+    segment normals; Hermite and B-spline reproduce it with a linear parametrization, and
+    test the traction with the master's linear shape functions, mortar.py), so smoothing
+    must not spoil the exact transmission of the uniform pressure."""
     from fenicsx_mortar import load_scene, solve
     scene = load_scene(ROOT / "demos/scenes/patch_test.toml")
     scene.contacts[0].smoothing = smoothing
