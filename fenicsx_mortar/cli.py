@@ -1,4 +1,5 @@
-"""Command line: ``fenicsx-mortar run SCENE.toml --out DIR``.
+"""Command line: ``fenicsx-mortar run SCENE.toml --out DIR``, ``fenicsx-mortar check
+SCENE.toml``, ``fenicsx-mortar study [--quick] [--out DIR]`` (docs/accuracy-vs-time.md).
 
 Exit codes: 0 converged, 1 the run stopped early (outputs up to the last converged step are
 kept), 2 bad input (one message naming the problem, no traceback).
@@ -22,7 +23,15 @@ def main(argv: list[str] | None = None) -> int:
                      help="continue the run in DIR from its last converged step")
     check = sub.add_parser("check", help="validate a scene file (and its mesh) without solving")
     check.add_argument("scene", type=Path)
+    study = sub.add_parser("study", help="accuracy against compute time: method x smoothing x "
+                           "enforcement x mesh size on B1-B3 (docs/accuracy-vs-time.md)")
+    from .study import add_arguments
+    add_arguments(study)
     args = parser.parse_args(argv)
+    if args.command == "study":
+        # the study runs its solves in worker processes; this process only schedules them
+        from .study import run_from_args
+        return run_from_args(args)
 
     from mpi4py import MPI
 
