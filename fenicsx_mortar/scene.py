@@ -159,7 +159,7 @@ class ContactPair:
     smoothing: Literal["none", "averaged-simple", "averaged-weighted", "averaged-tangent",
                        "hermite", "bspline"] = "none"
     search_radius: float | None = None  # default: two slave element sizes
-    n_gauss: int = 2
+    n_gauss: int | None = None  # default: the master curve's (2 polyline, 4 smoothed)
 
 
 @dataclass
@@ -317,7 +317,7 @@ class Scene:
             if c.friction.law == "none" and c.friction.mu != 0:
                 raise SceneError(f"{key}.friction: mu given but law = 'none' "
                                  "(use law = 'coulomb')")
-            if c.n_gauss < 2:
+            if c.n_gauss is not None and c.n_gauss < 2:
                 raise SceneError(f"{key}.n_gauss = {c.n_gauss}: at least 2")
         st = self.steps
         if st.count is not None and st.times is not None:

@@ -50,9 +50,12 @@ class MasterCurve(abc.ABC):
 
     #: number of curve points the curve on one segment depends on
     stencil_size: int
-    #: the normal field used for the gap is continuous across nodes (no blind wedge at a
-    #: convex corner; NTS measures along the node normal only beyond an open chain's end)
-    continuous_normal: bool = False
+    #: the point gap is C1 across master nodes (closest point on a C1 curve: no blind
+    #: wedge, no kink; NTS measures along the node normal only beyond an open chain's
+    #: end). Not so for the polyline (normal jumps) nor the averaged normals: their normal
+    #: is continuous but the chords are not perpendicular to it at a node, so the gap's
+    #: tangential derivative jumps there — NTS then measures along n̄ near a node.
+    c1_gap: bool = False
     #: sparse (n_points, n_nodes) map from node to curve-point coordinates; None: identity
     point_map = None
     #: the mortar kernel tests the contact traction on the master with the master's own
@@ -60,6 +63,13 @@ class MasterCurve(abc.ABC):
     #: :mod:`.mortar`, "Master-side test functions"): set where the curve between two
     #: nodes depends on more than those two nodes
     hat_test: bool = False
+    #: default Gauss points per mortar segment. The polyline's integrand N_j g is quadratic
+    #: (2 points: exact). On the smoothed curves it is not; then the derivative of the Gauss
+    #: sum with respect to a mortar segment's end is not the integrand there, and g̃_j gets a
+    #: slope jump where a slave node passes a master node's segmentation line: measured
+    #: 7e-6 (2 points), 1e-8 (3), below 1e-10 (4) on a curved test arc — at 2 points Newton
+    #: stalls at a residual ~5e-5 (stability case 3); :mod:`.mortar` step 2
+    gauss_points: int = 4
 
     def __init__(self, x: np.ndarray, seg: np.ndarray):
         self.x = np.asarray(x, dtype=float)
@@ -229,6 +239,8 @@ class Polyline(_NeighbourStencil):
     hence the stencil (prev(c), c, d, next(d)).
     """
 
+    gauss_points = 2
+
     def derivatives(self, seg_index, xi, P, order):
         c, d = P[1], P[2]
         a = ad.sub(d, c)
@@ -292,7 +304,6 @@ class AveragedNormals(_NeighbourStencil):
 
     VARIANTS = {"simple": _normal_simple, "weighted": _normal_weighted,
                 "tangent": _normal_tangent}
-    continuous_normal = True
 
     def __init__(self, x, seg, variant: str = "tangent"):
         if variant not in self.VARIANTS:
@@ -345,7 +356,7 @@ class Hermite(_NeighbourStencil):
     (quintic in ξ), safeguarded Newton (:mod:`.projection`).
     """
 
-    continuous_normal = True
+    c1_gap = True
     hat_test = True
 
     def derivatives(self, seg_index, xi, P, order):
@@ -581,7 +592,7 @@ class BSpline(MasterCurve):
     """
 
     stencil_size = 6
-    continuous_normal = True
+    c1_gap = True
     hat_test = True
 
     def __init__(self, x, seg, parametrization: BSplineParametrization | None = None):

@@ -23,6 +23,12 @@ For a candidate pair (slave segment s = [x_a, x_b], master segment m = [x_c, x_d
    interpolated averaged normal). With the smoothed curves the node tangents are the
    curve's, so a Gauss point in the shadow of a segment projects into ξ ∈ [0, 1] of it
    (up to the gap-over-radius approximation of the segmentation).
+   Number of points: the scene's ``n_gauss``, by default ``curve.gauss_points`` — 2 for
+   the polyline, whose integrand N_j g is quadratic (exact), 4 for the smoothed curves:
+   their integrand is not polynomial, and the derivative of a Gauss sum with respect to
+   the mortar segment's end is then not the integrand there, so g̃_j has a slope jump
+   when a slave node passes a master node's segmentation line (7e-6 with 2 points on a
+   curved arc, 1e-8 with 3, < 1e-10 with 4) — enough to stall Newton at 2 points.
 3. With dΓ = |x_b − x_a| dζ (current configuration), for j ∈ {a, b}:
        g̃_j += ∫ N_j g dΓ,   A_j += ∫ N_j dΓ   over [ζ_lo, ζ_hi].
    The nodal area A_j counts only the part of the slave segment that has a master. That is

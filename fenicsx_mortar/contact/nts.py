@@ -127,10 +127,11 @@ def node_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarray,
     # A node that projects onto a master node (within NODE_TOL) measures its gap along the
     # averaged normal there: the segment normals jump at the node, and with either one
     # alone a slave node sitting on a master node has no equilibrium (Newton cycles).
-    # Curves with a normal field continuous across nodes (smoothed curves: the node
-    # tangent is the curve's tangent there) need this only beyond an open chain's end.
+    # Curves whose gap is C1 across nodes (Hermite, B-spline) need this only beyond an
+    # open chain's end; with averaged normals the gap is continuous but kinked at a node
+    # (the patch test's coincident nodes then cycled), so they take it like the polyline.
     xiv = ad.value(xi)
-    if curve.continuous_normal:
+    if curve.c1_gap:
         at_c = (xiv < 0.0) & (curve.prev_seg[segs] < 0)
         at_d = (xiv > 1.0) & (curve.next_seg[segs] < 0)
     else:

@@ -44,8 +44,10 @@ class PairHook:
                           f"{eps / nominal:.0e} x E/h = {nominal:.3g}: round-off in epsilon*gap "
                           "may keep Newton from converging; prefer enforcement type 'alm'",
                           stacklevel=2)
+        # gaps are differences of coordinates: below ~32 ulp of the largest one they are noise
+        scale = max(np.abs(slave.X).max(initial=0.0), np.abs(master.X).max(initial=0.0), h)
         self.enforcement = ENFORCEMENTS[pair.enforcement.type](
-            eps, slave.n, pair.enforcement.tolerance)
+            eps, slave.n, pair.enforcement.tolerance, 32 * np.finfo(float).eps * scale)
         self.radius = pair.search_radius or 2.0 * h
         self.dofs = np.concatenate([slave.dofs.ravel(), master.dofs.ravel()])
         # the master curve: rebuilt from the converged nodes at each load step (the B-spline
@@ -89,7 +91,7 @@ class PairHook:
             curve = self._curve.with_nodes(xm)
             if self.pair.method == "mortar":
                 gap, area, _, _ = mortar.weighted_gaps(xs, s.seg, xm, m.seg, curve, pairs,
-                                                       self.pair.n_gauss)
+                                                       self.pair.n_gauss or curve.gauss_points)
             else:
                 gap, area = nts.node_gaps(xs, s.seg, xm, m.seg, curve, pairs,
                                           self._nts_segment)

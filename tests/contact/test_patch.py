@@ -37,3 +37,17 @@ def test_mortar_patch_test_with_smoothing(smoothing):
     result = solve(scene, log=lambda s: None)
     assert result.converged
     assert abs(result.stress.values()[:, 1, 1] + 1).max() <= 1e-8
+
+
+@pytest.mark.parametrize("smoothing", ["averaged-simple", "averaged-weighted", "averaged-tangent",
+                                       "hermite", "bspline"])
+def test_nts_with_smoothing_converges(smoothing):
+    """NTS with a smoothed master converges on the patch test (slave nodes sit exactly on
+    master nodes at x = 1, 2, 3) and, as with the polyline, does not pass it."""
+    from fenicsx_mortar import load_scene, solve
+    scene = load_scene(ROOT / "demos/scenes/patch_test.toml")
+    scene.contacts[0].smoothing = smoothing
+    scene.contacts[0].method = "nts"
+    result = solve(scene, log=lambda s: None)
+    assert result.converged, result.message
+    assert abs(result.stress.values()[:, 1, 1] + 1).max() > 1e-3

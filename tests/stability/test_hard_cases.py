@@ -89,42 +89,36 @@ def test_case02_slave_beyond_master_end():
 
 
 # ---------------------------------------------------------------------------- 3 half-rings
-SMOOTH_OK = ("none", "hermite", "bspline")
-
-
 def _case03(smoothing):
     run = check_stable(f"3 half-rings {smoothing}", None)
     assert contact(run)["active_nodes"] >= 3
     if smoothing != "none":
-        # smoothing must not add oscillation: at every common pseudo-time its osc is at
-        # most the unsmoothed (faceted master) run's
         ref = get("3 half-rings none")
         ref_osc = {round(s["time"], 9): o for s, o in zip(ref.result.steps, ref.osc_per_step)}
-        for s, o in zip(run.result.steps, run.osc_per_step):
-            t = round(s["time"], 9)
-            if t in ref_osc:
-                assert o <= ref_osc[t] + 1e-3, f"t = {t}: osc {o:.3g} > unsmoothed {ref_osc[t]:.3g}"
+        common = [(o, ref_osc[round(s["time"], 9)]) for s, o in
+                  zip(run.result.steps, run.osc_per_step) if round(s["time"], 9) in ref_osc]
+        assert len(common) >= 5
+        for o, o_ref in common:
+            if smoothing.startswith("averaged"):
+                # averaged normals keep the faceted geometry (gap to the chords): the
+                # pressure oscillates as with the polyline, within 1 %
+                assert abs(o - o_ref) <= 0.01 * o_ref + 1e-3, (o, o_ref)
+            else:
+                # a smooth curve must not add oscillation at any common pseudo-time ...
+                assert o <= o_ref + 1e-3, f"osc {o:.3g} > unsmoothed {o_ref:.3g}"
+        if not smoothing.startswith("averaged"):
+            # ... and removes most of the faceting's
+            assert sum(o for o, _ in common) <= 0.5 * sum(r for _, r in common)
     return run
 
 
-@pytest.mark.parametrize("smoothing", SMOOTH_OK)
+@pytest.mark.parametrize("smoothing", SMOOTHINGS)
 def test_case03_half_rings_coarse_curved_master(smoothing):
     """Coarse faceted master (12 segments on a half circle), press then a 23.6 deg turn:
     converged, finite, <= 80 Newton iterations per step, <= 2 cuts. Oscillation: the
     unsmoothed run's is that of the faceted geometry itself (slave nodes pass the master's
-    kinks) and is the reference; a smoothed master must not exceed it at any common step."""
-    _case03(smoothing)
-
-
-@pytest.mark.xfail(strict=True, reason=(
-    "averaged-normal smoothing (all three variants) fails in the very first increment of the "
-    "press: t 0 -> 0.0625 (or smaller) after 3 cuts, Newton DIVERGED_MAX_IT, residuals "
-    "3.3e2, 3.7e1, 2.1, 1.6e-3, 6.6e-5 then alternating 3.43e-5 / 4.90e-5 forever: the "
-    "residual is not consistent with the tangent (or not smooth) with averaged normals on a "
-    "curved, exactly touching master; none/hermite/bspline converge on the same scene"))
-@pytest.mark.parametrize("smoothing", [s for s in SMOOTHINGS if s.startswith("averaged")])
-def test_case03_half_rings_averaged_normals(smoothing):
-    """Same as above for the averaged-normal smoothings."""
+    kinks) and is the reference; Hermite and B-spline must not exceed it at any common step
+    and must at least halve it in sum; averaged normals (faceted geometry) equal it to 1 %."""
     _case03(smoothing)
 
 
