@@ -32,6 +32,8 @@ def _owned_nodes(V):
 def save(out: Path, comm: MPI.Comm, u, hooks, t: float, k: int, steps: list[dict]) -> None:
     idx, dofs = _owned_nodes(u.function_space)
     parts = comm.gather((idx, u.x.array[dofs]), root=0)
+    # state_dict is collective (it gathers per-node history from the owning ranks)
+    states = [h.state_dict() for h in hooks]
     if comm.rank != 0:
         return
     idx = np.concatenate([p[0] for p in parts])
@@ -39,8 +41,8 @@ def save(out: Path, comm: MPI.Comm, u, hooks, t: float, k: int, steps: list[dict
     order = np.argsort(idx)
     arrays = {"node": idx[order], "u": vals[order], "time": np.array(t), "step": np.array(k),
               "steps": np.array(json.dumps(steps, default=float))}
-    for i, h in enumerate(hooks):
-        for key, value in h.state_dict().items():
+    for i, state in enumerate(states):
+        for key, value in state.items():
             arrays[f"hook{i}_{key}"] = value
     buf = io.BytesIO()
     np.savez(buf, **arrays)

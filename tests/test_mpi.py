@@ -228,12 +228,7 @@ def test_mpi_half_rings_newton_iterations(ranks, runs):
 
 @pytest.mark.parametrize("scene,ranks", [
     ("clamped_block", 2),
-    pytest.param("patch_test", 2, marks=pytest.mark.xfail(strict=True, reason=(
-        "hangs: checkpoint.save (run.py calls it after every converged step when there is "
-        "an output folder) returns early on ranks != 0 and calls PairHook.state_dict() on "
-        "rank 0 only, but state_dict does comm.allreduce when comm.size > 1 (NTS segments, "
-        "friction reference points): rank 0 waits there forever at the first converged "
-        "step of any MPI run with contact that writes outputs (every CLI run)")))])
+    ("patch_test", 2)])
 def test_cli_outputs(scene, ranks, runs, tmp_path):
     """``fenicsx-mortar run`` under mpirun: rank 0 writes the outputs once, and their
     summary.json and checkpoint hold what the serial run computes."""

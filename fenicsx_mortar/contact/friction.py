@@ -24,6 +24,7 @@ import numpy as np
 
 from . import ad
 from .ad import Jet2
+from .curves import AveragedNormals, Polyline
 from .kernel import NodalContributions
 
 STICK, SLIP, INACTIVE = 1, 2, 0
@@ -48,9 +49,28 @@ def slip_contributions(xs: np.ndarray, xm: np.ndarray, curve, nodes: np.ndarray,
     xi = curve.project(cur_seg, xj, P_cur)
     _, a = curve.evaluate(cur_seg, xi, P_cur)
     x_ref, _ = curve.evaluate(ref_seg, ref_xi, P_ref)
-    gT = ad.dot(ad.sub(xj, x_ref), ad.unit(a))
+    gT = ad.dot(ad.sub(xj, x_ref), slip_direction(curve, cur_seg, xi, P_cur, a))
     masters = np.concatenate([curve.stencil(cur_seg), curve.stencil(ref_seg)], axis=1)
     return NodalContributions(nodes, nodes[:, None], masters, gT.val, gT.grad, gT.hess)
+
+
+def slip_direction(curve, seg, xi, P, a):
+    """Unit direction t̂ along which the slip is measured at ξ̄ on segment ``seg``.
+
+    On the faceted curves (polyline, averaged normals) the segment tangent a jumps at every
+    master node, and with it the direction of a slipping node's friction force μ p A t̂: a
+    slave node sliding across a master node sees its nodal force turn by the kink angle at
+    once. When the equilibrium of a load step puts the node on the kink, neither side has a
+    solution (ironing B4: Newton stalls at |R| ≈ 1.75 ≈ μ p A × kink angle, and every cut
+    step that ends inside that window fails). There t̂ is the linear interpolation of the
+    unit averaged nodal tangents t̄_c, t̄_d (eq. 3.4; the directions the mortar
+    segmentation uses), continuous across master nodes; on the smooth curves (Hermite,
+    B-spline) a is continuous already and t̂ = a/|a|."""
+    if isinstance(curve, (Polyline, AveragedNormals)):
+        tc, td = curve.node_tangents(seg, P)
+        tc, td = ad.unit(tc), ad.unit(td)
+        return ad.unit(ad.add(tc, ad.scale(ad.sub(td, tc), xi)))
+    return ad.unit(a)
 
 
 class CoulombFriction:
@@ -73,7 +93,10 @@ class CoulombFriction:
         trial = self.epsilon_t * gT
         # Φ ≤ 0 sticks, so a node at rest (g_T = 0, p = 0: the first iterate of a body held
         # only by contact) gets the tangential stiffness instead of none
-        slip = active & (np.abs(trial) - self.mu * p > 0.0)
+        # a node the moving cone left exactly on the cone (every slipping node at the start
+        # of a step) sticks: deciding that tie by round-off made the first Newton direction
+        # (and the iteration count) differ between serial and MPI runs
+        slip = active & (np.abs(trial) - self.mu * p > 1e-9 * self.mu * p)
         stick = active & ~slip
         sign = np.sign(trial)
         t = np.where(stick, trial, np.where(slip, self.mu * p * sign, 0.0))

@@ -17,7 +17,7 @@ from mpi4py import MPI
 from .. import _dolfinx as dx
 from ..output import write_atomic
 from ..scene import ContactPair, Scene, SceneError
-from . import assembly, friction, mortar, nts
+from . import assembly, boundary, friction, mortar, nts
 from .curves import make_curve
 from .enforcement import ENFORCEMENTS
 from .kernel import nodal_sum
@@ -95,7 +95,15 @@ class PairHook:
             else:
                 gap, area = nts.node_gaps(xs, s.seg, xm, m.seg, curve, pairs,
                                           self._nts_segment)
-        g, A = self._owned_sum(nodal_sum(gap, s.n)), self._owned_sum(nodal_sum(area, s.n))
+        A = self._owned_sum(nodal_sum(area, s.n))
+        if self.pair.method == "mortar":
+            # slave nodes barely supported by the master (sliding off its end) hand their
+            # terms to their supported neighbour (boundary.py)
+            weak = boundary.unsupported(A, boundary.full_areas(xs, s.seg, s.n))
+            if weak.any():
+                gap, area = boundary.hand_over(gap, weak), boundary.hand_over(area, weak)
+                A = self._owned_sum(nodal_sum(area, s.n))
+        g = self._owned_sum(nodal_sum(gap, s.n))
         p, active = self.enforcement.pressure(g, A)
         st = dict(xs=xs, xm=xm, gap=gap, area=area, g=g, A=A, p=p, active=active,
                   **self._coordinates(curve))
@@ -291,8 +299,9 @@ class PairHook:
         if self.friction is not None:
             self.friction.ref_seg = np.array(d["ref_seg"], dtype=np.int64)
             self.friction.ref_xi = np.array(d["ref_xi"], dtype=float)
-            self.friction.reject()  # makes the loaded history the committed one
+            # the loaded history becomes the committed one (reject() restores from it)
             self.friction._committed = (self.friction.ref_seg.copy(), self.friction.ref_xi.copy())
+            self.friction.reject()
 
     # -- outputs ------------------------------------------------------------------------
     def interface(self) -> dict[str, np.ndarray]:

@@ -71,12 +71,6 @@ def test_case02_projection_ties(label):
     check_uniform(run)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "slave segments that overlap the master by a sliver: at t = 0.5 the slave nodes just "
-    "past the master's ends (x = 0.375, 1.625) get p = 3.3e4 (mean pressure ~1) while the "
-    "nodes on the master's end corners get p = 0; the increment to t = 0.53125 then fails "
-    "after 4 cuts (DIVERGED_MAX_IT, residual jumping to 1e2). Partial overlap at the "
-    "master's ends needs a consistent boundary treatment (BENCHMARKS.md B3)"))
 def test_case02_slave_beyond_master_end():
     """A plate overhanging the master on both sides: converged, finite; the nodal pressure
     stays bounded: max p <= 20 x the mean contact pressure (the physical corner peak of an
