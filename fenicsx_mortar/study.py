@@ -1101,31 +1101,22 @@ def _bench_section(rows: list[dict], b: str) -> list[str]:
              "✗ failed, ⏱ time limit, ⊘ skipped (failed at the two coarser levels), — "
              "not in "
              "the plan:", ""]
-    body = []
+    combos = []                        # (method, smoothing, enforcement, runs per level)
     for m in METHODS:
         for s in SMOOTHINGS:
             for e in ENFORCEMENTS:
                 cells = [idx.get((b, m, s, e, k)) for k, _ in levels]
-                if all(c is None for c in cells):
-                    continue
-                body.append([m, s, e] + [_cell(c, err) for c in cells])
+                if any(c is not None for c in cells):
+                    combos.append((m, s, e, cells))
     head = ["method", "smoothing", "enforcement"] + [lab for _, lab in levels]
+    body = [[m, s, e] + [_cell(c, err) for c in cells] for m, s, e, cells in combos]
     lines += [_md_table(head, body), ""]
     for extra in ERRORS[b][1:]:
-        body = []
-        for m in METHODS:
-            for s in SMOOTHINGS:
-                for e in ENFORCEMENTS:
-                    cells = [idx.get((b, m, s, e, k)) for k, _ in levels]
-                    if all(c is None for c in cells):
-                        continue
-                    body.append([m, s, e] + [
-                        "—" if c is None else (f"{c[extra]:.2g}" if _ok(c, extra) else
-                                               _STATUS_MARK.get(c["status"], "?"))
-                        for c in cells])
-        lines += [f"{ERROR_LABELS[extra]}:", "",
-                  _md_table(["method", "smoothing", "enforcement"] + [lab for _, lab in levels],
-                            body), ""]
+        body = [[m, s, e] + ["—" if c is None else (f"{c[extra]:.2g}" if _ok(c, extra) else
+                                                    _STATUS_MARK.get(c["status"], "?"))
+                             for c in cells]
+                for m, s, e, cells in combos]
+        lines += [f"{ERROR_LABELS[extra]}:", "", _md_table(head, body), ""]
     # cost breakdown at the finest level reached by most runs
     k = max(lv for lv, _ in levels)
     fin = [r for r in sel if r["level"] == k and r["enforcement"] in ("alm", "penalty-1")]

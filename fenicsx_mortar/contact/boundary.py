@@ -71,5 +71,5 @@ def hand_over(c: NodalContributions, weak: np.ndarray) -> NodalContributions:
     out = NodalContributions(node, c.slave_nodes, c.master_nodes, c.value, c.grad, c._hess)
     # Petrov–Galerkin test vectors (smoothed masters) are per contribution, summed by node
     # like the values: they move along with their rows
-    out.test = getattr(c, "test", None)
+    out.test = c.test
     return out

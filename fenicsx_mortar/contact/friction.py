@@ -24,7 +24,6 @@ import numpy as np
 
 from . import ad
 from .ad import Jet2
-from .curves import AveragedNormals, Polyline
 from .kernel import NodalContributions
 
 STICK, SLIP, INACTIVE = 1, 2, 0
@@ -66,7 +65,7 @@ def slip_direction(curve, seg, xi, P, a):
     unit averaged nodal tangents t̄_c, t̄_d (eq. 3.4; the directions the mortar
     segmentation uses), continuous across master nodes; on the smooth curves (Hermite,
     B-spline) a is continuous already and t̂ = a/|a|."""
-    if isinstance(curve, (Polyline, AveragedNormals)):
+    if not curve.c1_gap:
         tc, td = curve.node_tangents(seg, P)
         tc, td = ad.unit(tc), ad.unit(td)
         return ad.unit(ad.add(tc, ad.scale(ad.sub(td, tc), xi)))
