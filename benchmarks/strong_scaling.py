@@ -80,38 +80,12 @@ def scene_text(h_contact: float, h_far: float, steps: int) -> str:
 # ------------------------------------------------------------------------- workers
 
 
-def keep_bulk_pattern() -> None:
-    """Work around the contact matrix losing the bulk form's preallocation (this driver
-    only; the package is not changed).
-
-    ``contact.assembly.create_matrix`` preallocates bulk + contact couplings, writes zeros
-    into the contact slots only and then assembles the matrix (MAT_FINAL_ASSEMBLY), which
-    squeezes every slot not written yet: all bulk entries. The first Jacobian assembly then
-    inserts them one by one with reallocation (NEW_NONZERO_ALLOCATION_ERR is off), a cost
-    that grows with the square of the size (measured on Hertz: 0.7 s at 5.6k dofs, 23 s at
-    30k, against 0.02 s preallocated; hours at 500k). Here the bulk form is assembled into
-    the fresh matrix with a flush assembly before that, so that its slots are written and
-    kept; the Jacobian evaluations overwrite the values."""
-    import dolfinx.fem.petsc
-
-    from fenicsx_mortar import _dolfinx as dx
-    original = dx.matrix_from_sparsity
-
-    def matrix_with_bulk_slots(a_form, pattern):
-        A = original(a_form, pattern)
-        dolfinx.fem.petsc.assemble_matrix(A, a_form)  # ends with a flush assembly only
-        return A
-    dx.matrix_from_sparsity = matrix_with_bulk_slots
-
-
-def worker_solve(scene_path: str, out_json: str, workaround: bool) -> None:
+def worker_solve(scene_path: str, out_json: str) -> None:
     """Under mpirun: solve the scene, then rank 0 writes the summary + memory per rank."""
     from mpi4py import MPI
 
     from fenicsx_mortar import load_scene, solve
     comm = MPI.COMM_WORLD
-    if workaround:
-        keep_bulk_pattern()
     t0 = time.perf_counter()
     res = solve(load_scene(scene_path), log=print if comm.rank == 0 else (lambda s: None))
     wall = time.perf_counter() - t0
@@ -127,7 +101,6 @@ def worker_solve(scene_path: str, out_json: str, workaround: bool) -> None:
         summary["cpu_seconds_per_rank"] = cpu  # < wall: the rank did not have a core to itself
         summary["host_cpus"] = os.cpu_count()
         summary["load_average_at_end"] = os.getloadavg()
-        summary["keep_bulk_pattern_workaround"] = workaround
         summary["surface_nodes"] = {h.pair.name: {"slave": h.slave.n, "master": h.master.n}
                                     for h in res.hooks}
         Path(out_json).write_text(json.dumps(summary, indent=1, default=float) + "\n")
@@ -281,14 +254,11 @@ def main() -> None:
     ap.add_argument("--reps", type=int, default=21)
     ap.add_argument("--work", type=Path, default=ROOT / "results/strong_scaling")
     ap.add_argument("--report", action="store_true", help="print the tables from --work only")
-    ap.add_argument("--no-workaround", action="store_true",
-                    help="measure the package's contact matrix as it is (see keep_bulk_pattern: "
-                         "the first Jacobian takes hours at 500k dofs)")
     ap.add_argument("--worker", nargs="+", help=argparse.SUPPRESS)
     a = ap.parse_args()
     if a.worker:
         if a.worker[0] == "solve":
-            return worker_solve(a.worker[1], a.worker[2], a.worker[3] == "workaround")
+            return worker_solve(a.worker[1], a.worker[2])
         return worker_gather(a.sizes, a.reps, a.worker[1])
 
     parts = a.only or ["scaling", "gather"]
@@ -300,8 +270,7 @@ def main() -> None:
             scene.write_text(scene_text(a.h_contact, a.h_far, a.steps))
             for n in a.ranks:
                 print(f"Hertz, N = {n} ...", flush=True)
-                mpirun(n, [me, "--worker", "solve", str(scene), str(a.work / f"hertz_n{n}.json"),
-                           "as-is" if a.no_workaround else "workaround"],
+                mpirun(n, [me, "--worker", "solve", str(scene), str(a.work / f"hertz_n{n}.json")],
                        a.work / f"hertz_n{n}.log")
         if "gather" in parts:
             print(f"gather, N = {a.gather_ranks} ...", flush=True)

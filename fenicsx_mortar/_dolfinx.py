@@ -239,6 +239,13 @@ def sparsity_pattern(a_form):
 
 
 def matrix_from_sparsity(a_form, pattern) -> PETSc.Mat:
-    """Insert extra couplings first with ``pattern.insert(local_blocks, local_blocks)``."""
+    """Insert extra couplings first with ``pattern.insert(local_blocks, local_blocks)``.
+
+    The bulk form is assembled once (flush only) so that its slots are written: a final
+    assembly squeezes every preallocated slot not written yet, and the first Jacobian would
+    then reallocate the whole bulk pattern entry by entry (Hertz, 23k dofs: 23 s instead
+    of 0.9 s)."""
     pattern.assemble()
-    return cpp.la.petsc.create_matrix(a_form.mesh.comm, pattern)
+    A = cpp.la.petsc.create_matrix(a_form.mesh.comm, pattern)
+    fpetsc.assemble_matrix(A, a_form)
+    return A

@@ -1076,12 +1076,7 @@ def _definitions(meta: dict) -> list[str]:
         "= master curve + projection + mortar/NTS integration in one vectorized pass, and "
         "`contact_insertion` into the PETSc vector/matrix), `linear_solve` (MUMPS LU), `mesh`, "
         "`jit`. Each worker first solves one small warm-up run per benchmark (not recorded), so "
-        "form compilation and imports are not in the timed runs. Seen while writing this "
-        "study (commit 34811a2): the first Jacobian assembly of every run fills the bulk "
-        "nonzeros of the contact-augmented matrix by dynamic allocation (`contact/assembly.py` "
-        "`create_matrix` keeps only the contact slots; 53k mallocs, 17.7 s, on the 27k-dof patch "
-        "test against 0.03 s for the second assembly; 4.2 s at Hertz a/16): `bulk_assembly` "
-        "holds that one-off cost, which grows faster than the mesh.",
+        "form compilation and imports are not in the timed runs.",
         "",
         "**Other jobs share this 2-core machine**, and the workers run side by side: wall "
         "times vary with the load (the load average is given above), CPU times much less. "
