@@ -30,8 +30,7 @@ class PairHook:
                  V, timings):
         self.pair, self.slave, self.master, self.timings = pair, slave, master, timings
         self.comm = slave.comm
-        h = float(np.mean(np.linalg.norm(slave.X[slave.seg[:, 1]] - slave.X[slave.seg[:, 0]], axis=1)))
-        self.h = h
+        self.h = h = _mean_length(slave)
         nominal = E_slave / h  # pressure per gap of a surface layer one element deep
         eps = pair.enforcement.epsilon or nominal
         if pair.enforcement.type == "alm":
@@ -387,7 +386,8 @@ def build_contact(scene: Scene, dom, bulk, timings):
         slave = build_surface(dom, c.slave, f"{c.name}:slave")
         master = build_surface(dom, c.master, f"{c.name}:master")
         _check_facing(scene.contacts.index(c), slave, master)
-        E = _slave_modulus(scene, dom, slave)
+        E = _modulus(scene, dom, slave)
+        _check_roles(c.name, slave, master, E, _modulus(scene, dom, master))
         hook = PairHook(c, slave, master, E, V, timings)
         hook._l2g = l2g
         blocks.extend(_coupling_blocks(hook))
@@ -412,10 +412,28 @@ def _check_facing(i: int, slave: Surface, master: Surface) -> None:
                          "other (their outward normals never oppose): check the group names")
 
 
-def _slave_modulus(scene: Scene, dom, slave: Surface) -> float:
-    """Young's modulus of the body the slave surface belongs to (for the default ε)."""
-    tag = slave.body_tag
+def _modulus(scene: Scene, dom, surface: Surface) -> float:
+    """Young's modulus of the body a surface belongs to."""
+    tag = surface.body_tag
     return next(b.material.E for b in scene.bodies if dom.cell_groups[b.group] == tag)
+
+
+def _mean_length(s: Surface) -> float:
+    return float(np.mean(np.linalg.norm(s.X[s.seg[:, 1]] - s.X[s.seg[:, 0]], axis=1)))
+
+
+def _check_roles(name: str, slave: Surface, master: Surface, E_s: float, E_m: float) -> None:
+    """Warn when the slave is the stiffer body with the finer segments. The multipliers live
+    on the slave nodes; the soft master must then meet more weighted-gap conditions than it
+    has nodes in the contact zone, and the pressure dips or zig-zags (docs/stability.md,
+    cases 1 and 5: a 60 % dip at the centre of a Hertz-like zone)."""
+    h_s, h_m = _mean_length(slave), _mean_length(master)
+    if E_s >= 2.0 * E_m and h_s < h_m:
+        warnings.warn(f"contact {name}: the slave body is {E_s / E_m:.3g} x stiffer than the "
+                      f"master's and its segments are finer ({h_s:.3g} < {h_m:.3g}): the "
+                      "master cannot follow the slave's multipliers and the pressure may "
+                      "oscillate; make the softer body the slave, or refine the master",
+                      stacklevel=3)
 
 
 def _coupling_blocks(hook: PairHook) -> list[np.ndarray]:

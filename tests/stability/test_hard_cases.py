@@ -46,20 +46,41 @@ def check_uniform(run, P: float = 1.0) -> None:
 # ---------------------------------------------------------------------------- 1 grazing
 def test_case01_grazing_approach_converges():
     """Tool arc slides into contact at a grazing angle: converged, finite, <= 40 Newton
-    iterations per step, <= 1 cut; contact does start and the tool is pushed up."""
+    iterations per step, <= 1 cut; contact does start and the substrate (slave) is pushed
+    down."""
     run = check_stable("1 grazing", None)
     assert contact(run, 0)["active_nodes"] == 0
     assert contact(run)["active_nodes"] >= 3
-    assert contact(run)["force_on_slave"][1] > 0
+    assert contact(run)["force_on_slave"][1] < 0
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "spurious dip at the centre of the contact zone: at the last step the 4 active slave "
-    "nodes carry p = [1.6, 198, 78, 200] (osc 1.20 > 0.2); a stiff cylinder on a soft "
-    "block must give a single-humped (Hertz) pressure"))
 def test_case01_grazing_approach_pressure_single_humped():
     """Reference: a Hertzian profile has osc = 0; bound 0.2 (a dip of 10 % of p_max)."""
     check_stable("1 grazing", 0.2)
+
+
+def _pair_warnings(scene) -> list[str]:
+    from fenicsx_mortar.bulk import build_bulk
+    from fenicsx_mortar.contact.pair import build_contact
+    from fenicsx_mortar.meshing import build_domain
+    from fenicsx_mortar.solver import Timings
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        dom = build_domain(scene)
+        build_contact(scene, dom, build_bulk(scene, dom), Timings())
+    return [str(w.message) for w in caught]
+
+
+def test_case01_stiff_finer_slave_warns():
+    """The pairing that gave the centre dip (slave = the tool arc, 10x stiffer, h 0.08
+    against the substrate's 0.1: p = [1.6, 198, 78, 200]) is warned about; the scene's own
+    pairing (soft slave) is not."""
+    from fenicsx_mortar import load_scene
+    scene = load_scene(HARD / "c01_grazing_approach.toml")
+    assert not any("stiffer" in t for t in _pair_warnings(scene))
+    c = scene.contacts[0]
+    c.slave, c.master = c.master, c.slave
+    assert any("stiffer" in t and "slave" in t for t in _pair_warnings(scene))
 
 
 # ---------------------------------------------------------------------------- 2 ties
@@ -141,8 +162,7 @@ def test_case05_liftoff_and_recontact():
     """Press (t = 1), lift off (t = 2: no active node, zero contact force), press again
     elsewhere (t = 3): converged, finite, <= 40 Newton iterations per step, <= 1 cut; the
     re-contact force is within 20 % of the first (same indentation; the first press is 1.2
-    from the substrate's free left end, the second 2.7, so the first is a little softer:
-    31.9 vs 36.5 when written)."""
+    from the substrate's free left end, the second 2.7, so the first is a little softer)."""
     run = check_stable("5 lift-off/re-contact", None)
     by_t = {round(s["time"], 6): k for k, s in enumerate(run.result.steps)}
     first, lifted, again = (contact(run, by_t[t]) for t in (1.0, 2.0, 3.0))
@@ -151,9 +171,6 @@ def test_case05_liftoff_and_recontact():
     assert again["normal_force"] == pytest.approx(first["normal_force"], rel=0.2)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "spurious dip at the centre of the contact zone (same as case 1): at t = 3 the active "
-    "nodes carry p = [2.1, 192, 81, 193] (osc 1.15 > 0.2)"))
 def test_case05_pressure_single_humped():
     """Reference: a Hertzian profile has osc = 0; bound 0.2."""
     check_stable("5 lift-off/re-contact", 0.2)
