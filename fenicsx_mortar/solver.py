@@ -85,7 +85,7 @@ class NewtonSolver:
         self._cycle = None
         comm = bulk.domain.mesh.comm
         self.snes = PETSc.SNES().create(comm)
-        prefix = f"fm{id(self)}_"
+        self._prefix = prefix = f"fm{id(self)}_"
         self.snes.setOptionsPrefix(prefix)
         opts = PETSc.Options()
         defaults = {"snes_type": "newtonls", "snes_linesearch_type": settings.line_search,
@@ -206,6 +206,14 @@ class NewtonSolver:
         res.reason = f"augmented Lagrangian: KKT not reached in {max_augmentations} augmentations"
         return res
 
+    def set_line_search(self, kind: str) -> None:
+        """Switch SNES's line search (petsc4py 3.18 has no line-search object: through the
+        options database, dropped again once applied)."""
+        opts = PETSc.Options()
+        opts[self._prefix + "snes_linesearch_type"] = kind
+        self.snes.setFromOptions()
+        opts.delValue(self._prefix + "snes_linesearch_type")
+
     def save_state(self) -> PETSc.Vec:
         return self.x.copy()
 
@@ -232,11 +240,14 @@ def run_load_steps(solver: NewtonSolver, steps: Steps, on_step: Callable[[int, f
                    on_progress: Callable[[str], None] = lambda s: None,
                    max_augmentations: int = 50, t_start: float = 0.0, k_start: int = 0,
                    should_stop: Callable[[], str | None] = lambda: None) -> tuple[bool, str]:
-    """Advance pseudo-time through ``steps`` from ``t_start``; halve a failed increment, at
-    most ``max_cuts`` times in a row, and double it again after each converged step (never
-    past the next target). Returns (completed, message)."""
+    """Advance pseudo-time through ``steps`` from ``t_start``; a failed increment is tried
+    once more with full Newton steps (no line search), then halved, at most ``max_cuts``
+    times in a row; the increment doubles again after each converged step (never past the
+    next target). Returns (completed, message)."""
     t = t_start
     k = k_start
+    line_search = solver.settings.petsc.get("snes_linesearch_type", solver.settings.line_search)
+    fallback = line_search != "basic"
     for target in steps.targets():
         if target <= t + 1e-14 * max(1.0, abs(target)):
             continue
@@ -250,11 +261,22 @@ def run_load_steps(solver: NewtonSolver, steps: Steps, on_step: Callable[[int, f
                                f"step {k}); continue with: fenicsx-mortar run --restart DIR")
             t_try = min(t + dt, target)
             saved = solver.save_state()
-            solver.bulk.set_time(t_try)
-            for h in solver.hooks:
-                h.begin_step()
             on_progress(f"step {k + 1} t={t_try:.6g} ...")
-            res = solver.solve_step(max_augmentations)
+            res = _attempt(solver, t_try, max_augmentations)
+            if not res.converged and fallback and not should_stop():
+                # the active set makes the residual only semismooth: a line search can stall
+                # on its kinks where full Newton steps go through (Hertz, mortar, penalty
+                # 10 E/h at h = a/2): one retry of the increment before cutting it
+                for h in solver.hooks:
+                    h.reject_step()
+                solver.restore_state(saved)
+                on_progress(f"retrying with full Newton steps: {res.reason}")
+                solver.set_line_search("basic")
+                full = _attempt(solver, t_try, max_augmentations)
+                solver.set_line_search(line_search)
+                if not full.converged:
+                    full.reason = f"{res.reason}; with full Newton steps: {full.reason}"
+                res = full
             if res.converged:
                 for h in solver.hooks:
                     h.accept_step()
@@ -282,3 +304,10 @@ def run_load_steps(solver: NewtonSolver, steps: Steps, on_step: Callable[[int, f
             dt *= 0.5
             on_progress(f"cut: {res.reason}; retrying with increment {dt:.3g}")
     return True, f"completed {k} steps up to pseudo-time {t:.6g}"
+
+
+def _attempt(solver: NewtonSolver, t_try: float, max_augmentations: int) -> StepResult:
+    solver.bulk.set_time(t_try)
+    for h in solver.hooks:
+        h.begin_step()
+    return solver.solve_step(max_augmentations)
