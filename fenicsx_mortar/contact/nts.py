@@ -10,6 +10,9 @@ For each slave node j:
 * point gap g_j = (x_j − x_m(ξ̄))·n_m(ξ̄) (:meth:`MasterCurve.gap`: with averaged
   normals ξ̄ is the projection along the smoothed normal and n_m the smoothed normal; for
   the Hermite and B-spline curves the closest point, with exact derivatives of ξ̄);
+  on the faceted curves, within ``BLEND`` of a segment's length from a master node the gap
+  turns C1 into (x_j − x_node)·n̄_node, the same function on both sides of the node (the
+  surface g = 0 then departs from the facets by at most BLEND·L·sin(θ/2) at a kink θ);
 * nodal area A_j = ½(|x_j − x_{j−1}| + |x_{j+1} − x_j|) (adjacent slave segments, current
   configuration); at a chain end the missing neighbour contributes 0;
 * weighted gap g̃_j = A_j g_j, so that g̃_j / A_j = g_j and the same enforcement code
@@ -35,8 +38,16 @@ from .kernel import NodalContributions, chain_links
 
 
 STICKY_TOL = 1e-8
-NODE_TOL = 1e-6
+BLEND = 0.1  # fraction of a segment next to each of its nodes where the gap blends (below)
 WEDGE = 0.5
+
+
+def _node_weight(xi):
+    """1 at and behind a segment's start node (ξ ≤ 0), 0 from ξ = BLEND on, the C1
+    smoothstep 3t² − 2t³ (t = 1 − ξ/BLEND) in between."""
+    v = ad.value(xi)
+    t = (BLEND - xi) * (1.0 / BLEND)
+    return ad.where(v <= 0.0, 1.0, ad.where(v >= BLEND, 0.0, t * t * (3.0 - 2.0 * t)))
 
 
 def _closest_segments(slave_x, master_x, nodes, segs, curve, previous=None):
@@ -124,25 +135,30 @@ def node_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarray,
     A = (l_p + l_q) * 0.5
 
     g, xi = curve.gap(segs, xj, P)
-    # A node that projects onto a master node (within NODE_TOL) measures its gap along the
-    # averaged normal there: the segment normals jump at the node, and with either one
-    # alone a slave node sitting on a master node has no equilibrium (Newton cycles).
-    # Curves whose gap is C1 across nodes (Hermite, B-spline) need this only beyond an
-    # open chain's end; with averaged normals the gap is continuous but kinked at a node
-    # (the patch test's coincident nodes then cycled), so they take it like the polyline.
-    xiv = ad.value(xi)
+    # Next to a master node the gap turns, C1, into the gap along the node's averaged
+    # normal: the segment normals jump at the node, and a slave node sitting on it (matching
+    # meshes under compression: every node of a Hertz contact) then has no equilibrium
+    # with either segment alone, and a sharp switch makes the force direction jump (Newton
+    # cycles). On both sides of the node the gap is then the same function, so the choice
+    # of segment there no longer matters. Curves whose gap is C1 across nodes (Hermite,
+    # B-spline) need the node's gap only beyond an open chain's end; averaged normals give
+    # a continuous but kinked gap at a node and take the blend like the polyline.
+    xc, xd = curve.node_points(segs, P)
     if curve.c1_gap:
-        at_c = (xiv < 0.0) & (curve.prev_seg[segs] < 0)
-        at_d = (xiv > 1.0) & (curve.next_seg[segs] < 0)
+        xiv = ad.value(xi)
+        w_c = np.where((xiv < 0.0) & (curve.prev_seg[segs] < 0), 1.0, 0.0)
+        w_d = np.where((xiv > 1.0) & (curve.next_seg[segs] < 0), 1.0, 0.0)
     else:
-        at_c = xiv <= NODE_TOL               # on the node, or in the wedge beyond it
-        at_d = xiv >= 1.0 - NODE_TOL
-    if at_c.any() or at_d.any():
-        xc, xd = curve.node_points(segs, P)
+        # the weights follow the position along the chord (differentiable; the polyline's
+        # ξ̄ comes as values only)
+        a = ad.sub(xd, xc)
+        s = ad.dot(ad.sub(xj, xc), a) / ad.dot(a, a)
+        w_c, w_d = _node_weight(s), _node_weight(1.0 - s)
+    if (ad.value(w_c) > 0.0).any() or (ad.value(w_d) > 0.0).any():
         tc, td = curve.node_tangents(segs, P)
         g_c = ad.dot(ad.sub(xj, xc), curve.normal(tc))
         g_d = ad.dot(ad.sub(xj, xd), curve.normal(td))
-        g = ad.where(at_c, g_c, ad.where(at_d, g_d, g))
+        g = g + (g_c - g) * w_c + (g_d - g) * w_d
     gt = A * g
 
     gap = NodalContributions(nodes, slave_nodes, stencil, gt.val, gt.grad, gt.hess)
