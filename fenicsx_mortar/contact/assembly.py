@@ -10,11 +10,13 @@ Everything is built as scipy sparse matrices over the stacked surface coordinate
 [slave x, slave y, …, master x, master y, …] and mapped to global dofs once.
 
 Cost (issue 7): K is returned as COO triplets with repeated entries (the node-a and node-b
-Hessians of a mortar pair are summed first, over the same local coordinates); they are summed
-once, on insertion. The layouts (which triplet lands in which CSR slot) of the gradient
-matrices and of the insertion into PETSc are kept while the structure repeats between
-Newton iterations, so a repeated structure costs bincounts instead of sorts; the gradient
-matrix is cached on its contributions (residual and tangent of one iterate share it).
+Hessians of a mortar pair come as one weighted sum over their common local coordinates,
+formed by the kernel on demand for the pairs with a node in contact; Gᵀ C as the products
+of each row's entries); they are summed once, on insertion. The layouts (which triplet
+lands in which CSR slot) of the gradient matrices and of the insertion into PETSc are kept
+while the structure repeats between Newton iterations, so a repeated structure costs
+bincounts instead of sorts; the gradient matrix is cached on its contributions (residual
+and tangent of one iterate share it).
 """
 from __future__ import annotations
 
@@ -99,25 +101,26 @@ def _halves(c: NodalContributions, n_slave: int) -> bool:
     return hit
 
 
+def _pair_weights(c: NodalContributions, w: np.ndarray):
+    """For contributions in halves (:func:`_halves`): the weights of the node-a and node-b
+    rows of the pairs with a nonzero one, and those pairs (a slice when all)."""
+    h = c.size // 2
+    wa, wb = w[:h], w[h:]
+    on = (wa != 0.0) | (wb != 0.0)
+    keep = slice(0, h) if on.all() else np.flatnonzero(on)
+    return wa[keep], wb[keep], keep
+
+
 def _hessian_triplets(c: NodalContributions, weight: np.ndarray, n_slave: int):
     """(rows, cols, vals) of Σ_k weight[node_k] ∇²q_k (contributions with weight ≠ 0;
     repeated (row, col) entries are to be summed)."""
     w = weight[c.node]
     gidx = _gidx(c, n_slave)
     if _halves(c, n_slave):
-        h = c.size // 2
-        wa, wb = w[:h], w[h:]
-        on = (wa != 0.0) | (wb != 0.0)
-        H = c.hess
-        if on.all():  # contiguous halves: no gathers
-            keep = slice(0, h)
-            vals = H[:h] * wa[:, None, None]
-            vals += H[h:] * wb[:, None, None]
-        else:
-            keep = np.flatnonzero(on)
-            vals = H[keep] * wa[keep, None, None]
-            vals += H[h + keep] * wb[keep, None, None]
-        vals = vals.ravel()
+        # node-a and node-b rows of a pair share their coordinates: one weighted Hessian
+        # per pair (the mortar kernel forms just these, NodalContributions.pair_hessian)
+        wa, wb, keep = _pair_weights(c, w)
+        vals = c.pair_hessian(wa, wb, keep).ravel()
     else:
         keep = np.flatnonzero(w != 0.0)
         vals = (c.hess[keep] * w[keep, None, None]).ravel()
@@ -169,14 +172,47 @@ def test_matrix(gap: NodalContributions, n_slave: int, n_test: int) -> sp.csr_ma
 def _test_jacobian_triplets(gap: NodalContributions, weight: np.ndarray, n_slave: int):
     """(rows, cols, vals) of Σ_k weight[node_k] ∂T_k/∂x: rows in the node coordinates of
     the test vectors, columns in the gap's local (curve-point) coordinates."""
-    keep = np.flatnonzero(weight[gap.node] != 0.0)
     t = gap.test
-    rg = t.global_indices(n_slave)[keep]
-    cg = _gidx(gap, n_slave)[keep]
-    vals = t.jac[keep] * weight[gap.node[keep], None, None]
+    w = weight[gap.node]
+    rg = t.global_indices(n_slave)
+    cg = _gidx(gap, n_slave)
+    h = gap.size // 2
+    if _halves(gap, n_slave) and np.array_equal(t.nodes[:h], t.nodes[h:]):
+        # as in _hessian_triplets: one weighted Jacobian per pair
+        wa, wb, keep = _pair_weights(gap, w)
+        vals = t.pair_jacobian(wa, wb, keep)
+        rg, cg = rg[:h][keep], cg[:h][keep]
+    else:
+        keep = np.flatnonzero(w != 0.0)
+        vals = t.jac[keep] * w[keep, None, None]
+        rg, cg = rg[keep], cg[keep]
     rows = np.broadcast_to(rg[:, :, None], vals.shape).ravel()
     cols = np.broadcast_to(cg[:, None, :], vals.shape).ravel()
     return rows, cols, vals.ravel()
+
+
+_outer_layouts: list = []
+
+
+def _outer_rows(L: sp.csr_matrix, C: sp.csr_matrix):
+    """(rows, cols, vals) of Lᵀ C = Σ_j L_j ⊗ C_j over the common rows j (repeated entries
+    to be summed, as the insertion does anyway): one product per pair of entries of a row,
+    gathered through an index layout that is kept while the patterns repeat (Newton
+    iterations) — cheaper than a sparse matrix product and its conversions."""
+    lay = _outer_layouts[0] if _outer_layouts else None
+    if lay is None or not all(a.shape == b.shape and np.array_equal(a, b) for a, b in
+                              zip(lay[0], (L.indptr, L.indices, C.indptr, C.indices))):
+        lc, cc = np.diff(L.indptr), np.diff(C.indptr)
+        row = np.repeat(np.arange(lc.shape[0]), lc)          # the row of each entry of L
+        size = cc[row]                                      # its products: the row of C
+        a = np.repeat(np.arange(L.indptr[-1]), size)
+        start = np.cumsum(size) - size
+        b = np.repeat(C.indptr[row] - start, size) + np.arange(size.sum())
+        lay = ((L.indptr.copy(), L.indices.copy(), C.indptr.copy(), C.indices.copy()),
+               a, b, L.indices[a], C.indices[b])
+        _outer_layouts[:] = [lay]
+    _, a, b, rows, cols = lay
+    return rows, cols, L.data[a] * C.data[b]
 
 
 def _tangent(gap: NodalContributions, area: NodalContributions, d1: np.ndarray,
@@ -207,8 +243,8 @@ def _tangent(gap: NodalContributions, area: NodalContributions, d1: np.ndarray,
             cols.append(ga.ravel())
         C = _csr(np.concatenate(vals), np.concatenate(rows), np.concatenate(cols),
                  (n_slave, n_coords))
-        K1 = (left.T @ C).tocoo()
-        parts_r.append(K1.row), parts_c.append(K1.col), parts_v.append(K1.data)
+        r, c, v = _outer_rows(left, C)
+        parts_r.append(r), parts_c.append(c), parts_v.append(v)
     if gap.size and np.any(hw[gap.node] != 0.0):
         if gap.test is None:
             r, c, v = _hessian_triplets(gap, hw, n_slave)
@@ -300,9 +336,12 @@ def _skipped(dofs: np.ndarray, skip: np.ndarray) -> np.ndarray:
 class _Pattern:
     """The CSR layout of the last insertion into a matrix: for the same triplet structure
     (the usual case between Newton iterations) the values are summed into it with one
-    bincount instead of a fresh COO → CSR conversion (sort)."""
+    bincount instead of a fresh COO → CSR conversion (sort). The CSR holds the touched
+    rows only (``rows``: their global numbers), not the whole ownership range: PETSc then
+    visits a few hundred rows instead of every local row."""
 
-    __slots__ = ("A", "dofs", "skip", "row", "col", "sel", "slot", "indptr", "indices")
+    __slots__ = ("A", "dofs", "skip", "row", "col", "sel", "slot", "indptr", "indices",
+                 "rows")
 
 
 _patterns: dict = {}
@@ -317,7 +356,8 @@ def add_to_matrix(A: PETSc.Mat, K: sp.spmatrix, dofs: np.ndarray, skip: np.ndarr
     if (pat is not None and pat.A is A and pat.dofs is dofs and pat.skip is skip
             and np.array_equal(pat.row, K.row) and np.array_equal(pat.col, K.col)):
         vals = np.bincount(pat.slot, weights=K.data[pat.sel], minlength=pat.indices.shape[0])
-        A.setValuesCSR(pat.indptr, pat.indices, vals, addv=PETSc.InsertMode.ADD)
+        A.setValuesIJV(pat.indptr, pat.indices, vals, addv=PETSc.InsertMode.ADD,
+                       rowmap=pat.rows)
         return
     out = _skipped(dofs, skip)
     structural = ~out[K.row] & ~out[K.col]
@@ -332,19 +372,21 @@ def add_to_matrix(A: PETSc.Mat, K: sp.spmatrix, dofs: np.ndarray, skip: np.ndarr
         cl = dofs[K.col[sel]].astype(np.int64)
         key = rl * np.int64(n_global) + cl
         uniq, slot = np.unique(key, return_inverse=True)
-        ur = uniq // n_global
-        indptr = np.zeros(r1 - r0 + 1, dtype=PETSc.IntType)
-        np.cumsum(np.bincount(ur, minlength=r1 - r0), out=indptr[1:])
+        rows, count = np.unique(uniq // n_global, return_counts=True)
+        indptr = np.zeros(rows.shape[0] + 1, dtype=PETSc.IntType)
+        np.cumsum(count, out=indptr[1:])
         pat = _Pattern()
         pat.A, pat.dofs, pat.skip = A, dofs, skip
         pat.row, pat.col = K.row.copy(), K.col.copy()
         pat.sel, pat.slot = sel, slot
         pat.indptr, pat.indices = indptr, (uniq % n_global).astype(PETSc.IntType)
+        pat.rows = (rows + r0).astype(PETSc.IntType)
         if len(_patterns) > 16:
             _patterns.clear()
         _patterns[id(A)] = pat
         vals = np.bincount(slot, weights=K.data[sel], minlength=uniq.shape[0])
-        A.setValuesCSR(pat.indptr, pat.indices, vals, addv=PETSc.InsertMode.ADD)
+        A.setValuesIJV(pat.indptr, pat.indices, vals, addv=PETSc.InsertMode.ADD,
+                       rowmap=pat.rows)
         return
     keep = (K.data != 0.0) & structural
     r, c, v = r[keep], dofs[K.col[keep]], K.data[keep]

@@ -132,6 +132,15 @@ class MasterCurve(abc.ABC):
         these are the directions whose normal is the curve's normal at the node, so that
         a point on such a line projects onto the node."""
 
+    def end_frame(self, seg_index, P: Sequence[Vec2], at_d) -> Tuple[Vec2, Vec2]:
+        """The node point and tangent direction of :meth:`node_points` and
+        :meth:`node_tangents` at one end per entry: the start node where ``at_d`` (boolean
+        array over the batch) is False, the end node where True (the same values; curves
+        override this to evaluate just that end)."""
+        xc, xd = self.node_points(seg_index, P)
+        tc, td = self.node_tangents(seg_index, P)
+        return _pick(at_d, xc, xd), _pick(at_d, tc, td)
+
     def normal(self, a: Vec2) -> Vec2:
         """Outward unit normal n = e3 × a/|a| (DESIGN.md §3)."""
         return ad.unit(ad.perp(a))
@@ -175,6 +184,11 @@ class MasterCurve(abc.ABC):
         return ad.dot(ad.sub(xs, x_m), n), xi, n
 
 
+def _pick(at_d, u: Vec2, v: Vec2) -> Vec2:
+    """u where ``at_d`` is False, v where True (per batch entry)."""
+    return ad.where(at_d, v[0], u[0]), ad.where(at_d, v[1], u[1])
+
+
 def _horner_derivatives(C: Sequence[Vec2], xi, order: int) -> list:
     """[x, x′, …, x^(order)] of the cubic x(ξ) = Σ_r C_r ξ^r (vector coefficients C_r)."""
     out = []
@@ -216,8 +230,12 @@ class _NeighbourStencil(MasterCurve):
         seg_index = np.asarray(seg_index)
         has_p = self.prev_seg[seg_index] >= 0
         has_q = self.next_seg[seg_index] >= 0
-        p = (ad.where(has_p, p[0], 2.0 * c[0] - d[0]), ad.where(has_p, p[1], 2.0 * c[1] - d[1]))
-        q = (ad.where(has_q, q[0], 2.0 * d[0] - c[0]), ad.where(has_q, q[1], 2.0 * d[1] - c[1]))
+        if not has_p.all():      # (ghosts only where needed: most batches have none)
+            p = (ad.where(has_p, p[0], 2.0 * c[0] - d[0]),
+                 ad.where(has_p, p[1], 2.0 * c[1] - d[1]))
+        if not has_q.all():
+            q = (ad.where(has_q, q[0], 2.0 * d[0] - c[0]),
+                 ad.where(has_q, q[1], 2.0 * d[1] - c[1]))
         return p, c, d, q
 
     def averaged_tangents(self, seg_index, P) -> Tuple[Vec2, Vec2]:
@@ -226,6 +244,17 @@ class _NeighbourStencil(MasterCurve):
         p, c, d, q = self._ghosted(seg_index, P)
         t_cd = ad.unit(ad.sub(d, c))
         return ad.add(ad.unit(ad.sub(c, p)), t_cd), ad.add(t_cd, ad.unit(ad.sub(q, d)))
+
+    def _node_tangent(self, prev: Vec2, node: Vec2, nxt: Vec2) -> Vec2:
+        """:meth:`node_tangents` at a node from the node and its neighbours (the averaged
+        tangent here)."""
+        return ad.add(ad.unit(ad.sub(node, prev)), ad.unit(ad.sub(nxt, node)))
+
+    def end_frame(self, seg_index, P, at_d):
+        # the end's node and its two neighbours: (p, c, d) at the start, (c, d, q) at the end
+        p, c, d, q = self._ghosted(seg_index, P)
+        node = _pick(at_d, c, d)
+        return node, self._node_tangent(_pick(at_d, p, c), node, _pick(at_d, d, q))
 
     def node_points(self, seg_index, P):
         return P[1], P[2]
@@ -325,6 +354,10 @@ class AveragedNormals(_NeighbourStencil):
         # the direction a with e3 × a = n̄: a = (n̄_y, −n̄_x)
         nc, nd = self.node_normals(seg_index, P)
         return (nc[1], -nc[0]), (nd[1], -nd[0])
+
+    def _node_tangent(self, prev, node, nxt):
+        n = self._node_normal(prev, node, nxt)
+        return (n[1], -n[0])
 
     def derivatives(self, seg_index, xi, P, order):
         return Polyline.derivatives(self, seg_index, xi, P, order)
@@ -642,6 +675,10 @@ class BSpline(MasterCurve):
         z = np.zeros(np.shape(seg_index))
         return (self.derivatives(seg_index, z, P, 1)[1],
                 self.derivatives(seg_index, z + 1.0, P, 1)[1])
+
+    def end_frame(self, seg_index, P, at_d):
+        x, a = self.derivatives(seg_index, np.where(at_d, 1.0, 0.0), P, 1)
+        return x, a
 
 
 # ---------------------------------------------------------------------- factory

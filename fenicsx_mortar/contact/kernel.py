@@ -30,8 +30,9 @@ class NodalContributions:
 
     ``hess`` may be given as a zero-argument callable: it is then computed on first access
     (the mortar kernel does so for the nodal areas, whose Hessian the contact terms never
-    need). ``cache`` holds derived data of the assembly (e.g. the gradient matrix), valid as
-    long as the arrays are not modified in place.
+    need, and for the weighted gaps, see :meth:`pair_hessian`). ``cache`` holds derived data
+    of the assembly (e.g. the gradient matrix), valid as long as the arrays are not
+    modified in place.
     """
 
     node: np.ndarray          # (K,) slave node index (into the slave chain)
@@ -63,6 +64,24 @@ class NodalContributions:
     def hess(self, h) -> None:
         self._hess = h
 
+    def pair_hessian(self, wa: np.ndarray, wb: np.ndarray, pairs) -> np.ndarray:
+        """wa ∇²q_k + wb ∇²q_{k+h} (h = size/2) for the contributions k in ``pairs`` (index
+        array or slice into the first half), where contributions k and k + h share their
+        local coordinates (the mortar kernel's node-a and node-b rows of a pair).
+
+        The tangent needs the Hessians only weighted by the pressures, and only for pairs
+        with a node in contact: a kernel that defers them (``hess`` an object with a
+        ``weighted(wa, wb, pairs)`` method, as the mortar kernel's) forms just these sums,
+        one per pair, as the Hessian of wa q_k + wb q_{k+h}."""
+        weighted = getattr(self._hess, "weighted", None)
+        if weighted is not None:
+            return weighted(wa, wb, pairs)
+        H = self.hess
+        h = self.size // 2
+        out = H[:h][pairs] * wa[:, None, None]
+        out += H[h:][pairs] * wb[:, None, None]
+        return out
+
     def __repr__(self) -> str:
         return f"NodalContributions(size={self.size}, m={self.m})"
 
@@ -89,7 +108,7 @@ class NodalContributions:
         return np.stack([2 * nodes, 2 * nodes + 1], axis=2).reshape(nodes.shape[0], -1)
 
 
-class MasterTest(NamedTuple):
+class MasterTest:
     """Petrov–Galerkin test vectors of a weighted gap (see :mod:`.mortar`, "Master-side test
     functions"), one row per contribution of the gap they belong to (same order):
 
@@ -97,11 +116,33 @@ class MasterTest(NamedTuple):
 
     over the virtual displacements v of the slave segment's nodes (a, b) and of the master
     segment's nodes (c, d) — master NODES, not curve points — and ``jac`` = ∂T_k/∂(local
-    coordinates of the gap contribution) for the tangent."""
+    coordinates of the gap contribution) for the tangent. ``jac`` may be given as an object
+    computing it on first access; with a ``weighted`` method it also serves
+    :meth:`pair_jacobian` directly (see :meth:`NodalContributions.pair_hessian`)."""
 
-    nodes: np.ndarray   # (K, 4) slave a, slave b (slave chain), master c, master d (master nodes)
-    grad: np.ndarray    # (K, 8) T_k over [v_a, v_b, v_c, v_d] (x, y each)
-    jac: np.ndarray     # (K, 8, m)
+    def __init__(self, nodes: np.ndarray, grad: np.ndarray, jac):
+        #: (K, 4) slave a, slave b (slave chain), master c, master d (master nodes)
+        self.nodes = nodes
+        self.grad = grad     # (K, 8) T_k over [v_a, v_b, v_c, v_d] (x, y each)
+        self._jac = jac      # (K, 8, m), or deferred
+
+    @property
+    def jac(self) -> np.ndarray:
+        if callable(self._jac):
+            self._jac = self._jac()
+        return self._jac
+
+    def pair_jacobian(self, wa: np.ndarray, wb: np.ndarray, pairs) -> np.ndarray:
+        """wa ∂T_k/∂x + wb ∂T_{k+h}/∂x for the contributions k in ``pairs`` of the first half
+        (h = K/2; rows k and k + h share nodes and local coordinates)."""
+        weighted = getattr(self._jac, "weighted", None)
+        if weighted is not None:
+            return weighted(wa, wb, pairs)
+        jac = self.jac
+        h = jac.shape[0] // 2
+        out = jac[:h][pairs] * wa[:, None, None]
+        out += jac[h:][pairs] * wb[:, None, None]
+        return out
 
     def global_indices(self, n_slave: int) -> np.ndarray:
         """(K, 8) positions in the stacked NODE coordinates [slave nodes, master nodes]."""

@@ -62,11 +62,18 @@ B-spline's control points)], vectorized over
 pairs and Gauss points (batch (n_gauss, n_pairs), in blocks of pairs). The Gauss-point
 integrand is differentiated with ζ_lo, ζ_hi as extra independent variables and their
 dependence on the coordinates is applied afterwards by the chain rule (exact, cheaper).
+
+Cost (issue 7). A float pass over all candidates first finds the contributing pairs and
+which end of the shadow each bound is (ζ_lo, ζ_hi are the ends ζ_c, ζ_d or clamped at
+0, 1); only the ends in use get jets. The nodal integrals' values and gradients are
+formed at once; their Hessians, which the tangent needs only as Σ_j p_j ∇²g̃_j over the
+pairs with a node in contact, when it asks (:class:`_Deferred`): one weighted sum per
+pair.
 """
 from __future__ import annotations
 
 import functools
-from typing import Sequence, Tuple
+from typing import NamedTuple, Sequence, Tuple
 
 import numpy as np
 
@@ -88,7 +95,8 @@ def gauss_legendre_01(n: int) -> Tuple[np.ndarray, np.ndarray]:
 
 def _interval(xa: Vec2, xb: Vec2, P: Sequence[Vec2], curve: MasterCurve, pm: np.ndarray,
               nodes=None):
-    """ζ_lo, ζ_hi (jets or arrays) and the boolean 'slave faces master' per pair.
+    """The ends ζ_c, ζ_d of the master segment's shadow on the slave segment (jets or
+    arrays, unclamped) and the boolean 'slave faces master' per pair.
     ``nodes``: (x_c, x_d, t̄_c, t̄_d) per pair if already known (values; P is then unused)."""
     if nodes is None:
         xc, xd = curve.node_points(pm, P)
@@ -103,38 +111,152 @@ def _interval(xa: Vec2, xb: Vec2, P: Sequence[Vec2], curve: MasterCurve, pm: np.
         # keep the discarded entries finite; they are dropped by the caller
         den_c = ad.where(facing, den_c, -1.0)
         den_d = ad.where(facing, den_d, -1.0)
-    zc = ad.dot(ad.sub(xc, xa), tc) * ad.reciprocal(den_c)
-    zd = ad.dot(ad.sub(xd, xa), td) * ad.reciprocal(den_d)
-    zc_v, zd_v = ad.value(zc), ad.value(zd)
-    zmin = ad.where(zc_v <= zd_v, zc, zd)
-    zmax = ad.where(zc_v <= zd_v, zd, zc)
-    lo = ad.where(ad.value(zmin) > 0.0, zmin, 0.0)
-    hi = ad.where(ad.value(zmax) < 1.0, zmax, 1.0)
-    return lo, hi, facing
+    zc = ad.div(ad.dot(ad.sub(xc, xa), tc), den_c)
+    zd = ad.div(ad.dot(ad.sub(xd, xa), td), den_d)
+    return zc, zd, facing
 
 
-def _node_values(curve: MasterCurve, master_x, pm: np.ndarray):
+def _clamp(zc: np.ndarray, zd: np.ndarray):
+    """Integration bounds ζ_lo = max(min(ζ_c, ζ_d), 0), ζ_hi = min(max(ζ_c, ζ_d), 1) from
+    the values of the shadow's ends, and which end each bound is: ``mix`` (2 × 2 arrays of
+    0/1) with ζ_lo = mix[0][0] ζ_c + mix[0][1] ζ_d (+ 0 where clamped) and ζ_hi =
+    mix[1][0] ζ_c + mix[1][1] ζ_d (+ 1 where clamped), the form :func:`.ad.substitute`
+    takes (the bounds' derivatives are those of the chosen end: no jets of their own)."""
+    first = zc <= zd
+    zmin = np.where(first, zc, zd)
+    zmax = np.where(first, zd, zc)
+    lo_in, hi_in = zmin > 0.0, zmax < 1.0
+    lo = np.where(lo_in, zmin, 0.0)
+    hi = np.where(hi_in, zmax, 1.0)
+    mix = (((lo_in & first) * 1.0, (lo_in & ~first) * 1.0),
+           ((hi_in & ~first) * 1.0, (hi_in & first) * 1.0))
+    return lo, hi, mix
+
+
+class _Ends(NamedTuple):
+    """The bounds ζ_lo, ζ_hi of the pairs' integration intervals from the float pass, and
+    which end of the shadow (:func:`_interval`) each one is: the clamp's ``mix``
+    (:func:`_clamp`). Only these ends get jets (:meth:`entries`)."""
+
+    lo: np.ndarray
+    hi: np.ndarray
+    mix: tuple
+
+    def subset(self, pairs) -> "_Ends":
+        """The bounds of the pairs ``pairs`` (slice or index array)."""
+        return _Ends(self.lo[pairs], self.hi[pairs],
+                     tuple(tuple(c[pairs] for c in row) for row in self.mix))
+
+    def entries(self):
+        """The ends in use as entries (pair, at_d: False for the start node c, True for the
+        end node d), and per pair the entry each bound is (any entry where the bound is
+        clamped) and whether it is that entry (1.0) or clamped (0.0)."""
+        (lc, ld), (hc, hd) = ((c > 0.0 for c in row) for row in self.mix)
+        ic, id_ = np.flatnonzero(lc | hc), np.flatnonzero(ld | hd)
+        if ic.shape[0] + id_.shape[0] == 0:
+            ic = np.zeros(1, dtype=np.int64)     # no bound moves: one entry to keep shapes
+        pos_c = np.zeros(self.lo.shape[0], dtype=np.int64)
+        pos_d = np.zeros(self.lo.shape[0], dtype=np.int64)
+        pos_c[ic] = np.arange(ic.shape[0])
+        pos_d[id_] = ic.shape[0] + np.arange(id_.shape[0])
+        pair = np.concatenate([ic, id_])
+        at_d = np.arange(pair.shape[0]) >= ic.shape[0]
+        return (pair, at_d, (np.where(lc, pos_c, pos_d), np.where(hc, pos_c, pos_d)),
+                ((lc | ld) * 1.0, (hc | hd) * 1.0))
+
+
+class _Bounds(NamedTuple):
+    """ζ_lo, ζ_hi of a block of pairs: values, and for their derivatives the jet of ζ at
+    the shadow's ends in use (batch: entries), the entry each bound is per pair, and
+    whether it is that entry (1.0) or clamped (0.0)."""
+
+    lo: np.ndarray
+    hi: np.ndarray
+    z_end: Jet2
+    entry: tuple
+    on: tuple
+
+    def inner(self, pairs=None):
+        """The bounds of the pairs (all, or a slice / index array) as :func:`.ad.substitute`
+        takes them: the jets of the ends they are, and the mix."""
+        (e_lo, e_hi), (a, b) = self.entry, self.on
+        if pairs is not None:
+            e_lo, e_hi, a, b = e_lo[pairs], e_hi[pairs], a[pairs], b[pairs]
+        return (self.z_end[e_lo], self.z_end[e_hi]), ((a, None), (None, b))
+
+    def grads(self, m: int) -> Tuple[np.ndarray, np.ndarray]:
+        """Dense gradients (K, m) of ζ_lo and ζ_hi over the first m variables."""
+        g = self.z_end.grad[:, :m]
+        return tuple(on[:, None] * g[entry] for entry, on in zip(self.entry, self.on))
+
+    def jets(self, m: int) -> Tuple[Jet2, Jet2]:
+        """ζ_lo, ζ_hi as jets over the first m variables."""
+        out = []
+        for entry, on, clamp in zip(self.entry, self.on, (0.0, 1.0)):
+            q = ad.where(on > 0.0, self.z_end[entry], clamp)
+            out.append(q if q.m == m else Jet2(q.val, q.grad[:, :m], q.hess[:, :m, :m]))
+        return out[0], out[1]
+
+
+def _columns(x: np.ndarray, rows: np.ndarray) -> Vec2:
+    """(x[rows, 0], x[rows, 1]) by take on contiguous columns (much faster than fancy
+    indexing of the (n, 2) array)."""
+    return (np.ascontiguousarray(x[:, 0]).take(rows), np.ascontiguousarray(x[:, 1]).take(rows))
+
+
+#: index layouts of the last few candidate sets (see _layout)
+_layouts: list = []
+
+
+class _Layout(NamedTuple):
+    """Index data of a candidate set that depends only on the pairs and the chains."""
+
+    ps: np.ndarray        # candidate pairs
+    pm: np.ndarray
+    na: np.ndarray        # slave end nodes a, b of each pair
+    nb: np.ndarray
+    seg_used: np.ndarray  # master segments in use, and each pair's position among them
+    inv: np.ndarray
+
+
+def _layout(ps: np.ndarray, pm: np.ndarray, slave_seg, master_seg, n_master_seg: int
+            ) -> _Layout:
+    """The index layout of the candidates, kept while the same candidates come again for
+    the same chains (``slave_seg``, ``master_seg``: the caller's arrays, compared by
+    identity; the search returns the same pairs at most Newton iterations)."""
+    for lay, ss, ms in _layouts:
+        if (ss is slave_seg and ms is master_seg and lay.ps.shape == ps.shape
+                and np.array_equal(lay.ps, ps) and np.array_equal(lay.pm, pm)):
+            return lay
+    seg_s = np.asarray(slave_seg, dtype=np.int64).reshape(-1, 2)
+    used = np.zeros(n_master_seg, dtype=bool)
+    used[pm] = True
+    lay = _Layout(ps.copy(), pm.copy(), np.ascontiguousarray(seg_s[:, 0]).take(ps),
+                  np.ascontiguousarray(seg_s[:, 1]).take(ps), np.flatnonzero(used),
+                  (np.cumsum(used) - 1).take(pm))
+    # the key holds the chains themselves (identity; they are the surfaces' topology)
+    _layouts.insert(0, (lay, slave_seg, master_seg))
+    del _layouts[4:]
+    return lay
+
+
+def _node_values(curve: MasterCurve, master_x, lay: _Layout):
     """(x_c, x_d, t̄_c, t̄_d) values per pair, evaluated once per master segment in use
     (the candidate pairs repeat each master segment many times) and gathered."""
-    n_seg = curve.seg.shape[0]
-    used = np.zeros(n_seg, dtype=bool)
-    used[pm] = True
-    seg_used = np.flatnonzero(used)
-    inv = (np.cumsum(used) - 1)[pm]
-    P = curve.split_points(curve.local_points(seg_used, master_x))
-    xc, xd = curve.node_points(seg_used, P)
-    tc, td = curve.node_tangents(seg_used, P)
-    return tuple((np.asarray(v[0], dtype=float)[inv], np.asarray(v[1], dtype=float)[inv])
-                 for v in (xc, xd, tc, td))
+    P = curve.split_points(curve.local_points(lay.seg_used, master_x))
+    xc, xd = curve.node_points(lay.seg_used, P)
+    tc, td = curve.node_tangents(lay.seg_used, P)
+    return tuple((np.asarray(v[0], dtype=float).take(lay.inv),
+                  np.asarray(v[1], dtype=float).take(lay.inv)) for v in (xc, xd, tc, td))
 
 
-def _prepass(xa, xb, curve: MasterCurve, master_x, pm: np.ndarray):
-    """Values (ζ_lo, ζ_hi, keep) of the candidate pairs (slave end points xa, xb (k, 2))."""
-    nodes = _node_values(curve, master_x, pm)
-    lo, hi, facing = _interval((xa[:, 0], xa[:, 1]), (xb[:, 0], xb[:, 1]), None, curve, pm,
-                               nodes)
-    lo, hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
-    return lo, hi, facing & (hi > lo)
+def _prepass(xa: Vec2, xb: Vec2, curve: MasterCurve, master_x, lay: _Layout):
+    """Values (ζ_lo, ζ_hi, keep, mix of :func:`_clamp`) of the candidate pairs (slave end
+    points xa, xb)."""
+    nodes = _node_values(curve, master_x, lay)
+    zc, zd, facing = _interval(xa, xb, None, curve, lay.pm, nodes)
+    lo, hi, mix = _clamp(np.asarray(zc, dtype=float), np.asarray(zd, dtype=float))
+    return lo, hi, facing & (hi > lo), mix
 
 
 def segmentation(slave_x: np.ndarray, slave_seg: np.ndarray, curve: MasterCurve,
@@ -149,36 +271,109 @@ def segmentation(slave_x: np.ndarray, slave_seg: np.ndarray, curve: MasterCurve,
     """
     ps = np.asarray(pairs[0], dtype=np.int64)
     pm = np.asarray(pairs[1], dtype=np.int64)
-    seg = np.asarray(slave_seg, dtype=np.int64).reshape(-1, 2)[ps]
+    lay = _layout(ps, pm, slave_seg, curve.seg, curve.seg.shape[0])
     xs = np.asarray(slave_x, dtype=float)
-    return _prepass(xs[seg[:, 0]], xs[seg[:, 1]], curve, master_x, pm)
+    return _prepass(_columns(xs, lay.na), _columns(xs, lay.nb), curve, master_x, lay)[:3]
+
+
+class _Integrand(NamedTuple):
+    """What the Gauss-point stage of a block of pairs leaves for the nodal integrals
+    ∫ N_j f dΓ = J Σ_g w_g N_j(ζ_g) f(ζ_g): the integrand f (jet over [ζ_lo, ζ_hi, local
+    coordinates], batch (n_gauss, K)), the length element J (batch (K,)), ζ_g, the Gauss
+    weights (n_gauss, 1) and the bounds (their dependence on the coordinates)."""
+
+    f: Jet2
+    J: Jet2
+    zeta: Jet2
+    w: np.ndarray
+    bounds: _Bounds
+
+
+#: N_a = 1 − ζ, N_b = ζ as ζ·(−1, 1) + (1, 0) over a leading node axis
+_SIGN = np.array([-1.0, 1.0]).reshape(2, 1, 1)
+_ONE_ZERO = np.array([1.0, 0.0]).reshape(2, 1, 1)
+
+
+def _nodal(q: _Integrand, pairs=None, weights=None) -> Jet2:
+    """∫ N_j f dΓ as a jet over the local coordinates (the bounds substituted): for nodes a
+    and b stacked, batch (2, K); or, with ``weights`` = (w_a, w_b) for the block's
+    ``pairs`` (index array or slice), the one combination w_a ∫ N_a f dΓ + w_b ∫ N_b f dΓ
+    per pair (what the tangent needs, :meth:`.kernel.NodalContributions.pair_hessian`)."""
+    f, J, zeta = q.f, q.J, q.zeta
+    if pairs is not None:
+        f, J, zeta = f[:, pairs], J[pairs], zeta[:, pairs]
+    inner, mix = q.bounds.inner(pairs)
+    if weights is None:
+        return ad.substitute(J * (f * ((zeta * _SIGN + _ONE_ZERO) * q.w)).sum(1), inner, mix)
+    wa, wb = weights
+    return ad.substitute(J * (f * ((zeta * (wb - wa) + wa) * q.w)).sum(0), inner, mix)
+
+
+class _Deferred:
+    """A block [rows, cols] of the Hessians of the kernel's contributions ∫ N_j f dΓ
+    (node-a rows, then node-b rows) from the stored integrands (:class:`_Integrand` per
+    block of pairs), formed on demand: all of them (call), or one weighted sum per pair
+    (:meth:`weighted`). Newton's tangent needs only the latter, and only for the pairs with
+    a node in contact (Hertz: a quarter of them)."""
+
+    def __init__(self, K: int, blocks: list, rows: slice, cols: slice, shape: tuple):
+        self.K, self.blocks, self.rows, self.cols, self.shape = K, blocks, rows, cols, shape
+
+    def __call__(self) -> np.ndarray:
+        out = np.empty((2, self.K) + self.shape)
+        for b0, b1, q in self.blocks:
+            out[:, b0:b1] = _nodal(q).hess[..., self.rows, self.cols]
+        return out.reshape((2 * self.K,) + self.shape)
+
+    def weighted(self, wa: np.ndarray, wb: np.ndarray, pairs) -> np.ndarray:
+        """wa H_a + wb H_b of the pairs (index array or slice into [0, K))."""
+        if len(self.blocks) == 1:
+            return _nodal(self.blocks[0][2], pairs, (wa, wb)).hess[..., self.rows, self.cols]
+        idx = np.arange(self.K)[pairs]
+        out = np.empty((idx.shape[0],) + self.shape)
+        for b0, b1, q in self.blocks:
+            here = np.flatnonzero((idx >= b0) & (idx < b1))
+            if here.shape[0] == 0:
+                continue
+            sel = slice(here[0], here[-1] + 1)
+            # the whole block (all its pairs asked for): views instead of gathers
+            part = (slice(0, b1 - b0) if here.shape[0] == b1 - b0 else idx[sel] - b0)
+            out[sel] = _nodal(q, part, (wa[sel], wb[sel])).hess[..., self.rows, self.cols]
+        return out
 
 
 def _pair_block(X: np.ndarray, pm: np.ndarray, curve: MasterCurve, n_gauss: int,
-                test: bool = False):
-    """Jet kernel for a block of contributing pairs with local coordinates X (K, m).
+                ends: _Ends, test: bool = False):
+    """Jet kernel for a block of contributing pairs with local coordinates X (K, m) and
+    the bounds of their integration intervals (:class:`_Ends`).
 
-    Returns the jets (over X) of g̃_a, g̃_b, the interval jets (ζ_lo, ζ_hi) (over X), and
-    the values ζ_g, ξ_g (n_gauss, K) and the Gauss weights times the length element
-    (n_gauss, K) for D and M. The nodal areas follow from (ζ_lo, ζ_hi) in closed form
-    (:func:`_areas`). With ``test``, the jets run over [X, v] with 8 virtual displacements
-    v = (v_a, v_b, v_c, v_d) appended (value 0) and two more jets Ψ_a, Ψ_b are returned
-    (the Petrov–Galerkin test functionals of the module docstring).
+    Returns the integrands of the weighted gaps and, with ``test``, of the Petrov–Galerkin
+    test functionals Ψ_a, Ψ_b (module docstring; else None) (:class:`_Integrand`), the
+    bounds (:class:`_Bounds`), and the values ζ_g, ξ_g (n_gauss, K) and the Gauss weights
+    times the length element (n_gauss, K) for D and M. The nodal areas follow from the
+    bounds in closed form (:func:`_areas`). With ``test`` the jets run over [X, v] with 8
+    virtual displacements v = (v_a, v_b, v_c, v_d) appended (value 0).
     """
     L = curve.stencil_size
     m = X.shape[1]
     if test:
         X = np.concatenate([X, np.zeros((X.shape[0], 8))], axis=1)
-    v = Jet2.variables(X)
+    # ζ of the shadow's ends in use (:func:`_interval` for one end per entry), over the
+    # local coordinates of the entry's pair; the pairs pass the facing test (float pass)
+    pair, at_d, entry, on = ends.entries()
+    v = Jet2.variables(X.take(pair, axis=0))
     xa, xb = (v[0], v[1]), (v[2], v[3])
     P = [(v[4 + 2 * i], v[5 + 2 * i]) for i in range(L)]
-    lo, hi, _ = _interval(xa, xb, P, curve, pm)
+    x_n, t_n = curve.end_frame(pm.take(pair), P, at_d)
+    z_end = ad.div(ad.dot(ad.sub(x_n, xa), t_n), ad.dot(ad.sub(xb, xa), t_n))
+    lo, hi = ends.lo, ends.hi
+    bounds = _Bounds(lo, hi, z_end, entry, on)
 
     # Gauss-point stage over the variables z = [ζ_lo, ζ_hi, local coordinates]: there the
     # integrand only touches the few coordinates the curve evaluation needs (sparse jets),
     # and the dependence through ζ_lo, ζ_hi (on all of them) is applied once per pair by
     # the chain rule (ad.substitute), not per Gauss point.
-    Z = np.concatenate([lo.val[:, None], hi.val[:, None], X], axis=1)
+    Z = np.concatenate([lo[:, None], hi[:, None], X], axis=1)
     vz = Jet2.variables(Z)
     z_lo, z_hi = vz[0], vz[1]
     xa, xb = (vz[2], vz[3]), (vz[4], vz[5])
@@ -196,21 +391,16 @@ def _pair_block(X: np.ndarray, pm: np.ndarray, curve: MasterCurve, n_gauss: int,
         g, xi, n = curve.gap_frame(pm[None, :], x_s, P)
     else:
         g, xi = curve.gap(pm[None, :], x_s, P)
-
-    def nodal(f):                                # (∫ N_a f dΓ, ∫ N_b f dΓ) as jets
-        wf = f * w
-        fb = J * (wf * zeta).sum(0)
-        return [ad.substitute(q, (lo, hi)) for q in (J * wf.sum(0) - fb, fb)]
-
-    jets = nodal(g)
+    gaps = _Integrand(g, J, zeta, w, bounds)
+    tests = None
     if test:
         va, vb, vc, vd = [(vz[2 + m + 2 * i], vz[3 + m + 2 * i]) for i in range(4)]
         # δx_s(ζ) − Σ N̂_l(ξ) δx_l with δx → v: linear in v
         dv = ad.sub(ad.add(va, ad.scale(ad.sub(vb, va), zeta)),
                     ad.add(vc, ad.scale(ad.sub(vd, vc), xi)))
-        jets += nodal(ad.dot(dv, n))
-        lo, hi = (Jet2(q.val, q.grad[:, :m], q.hess[:, :m, :m]) for q in (lo, hi))
-    return jets, (lo, hi), zeta.val, np.broadcast_to(ad.value(xi), zeta.shape), J.val * w
+        tests = _Integrand(ad.dot(dv, n), J, zeta, w, bounds)
+    return (gaps, tests, bounds, zeta.val, np.broadcast_to(ad.value(xi), zeta.shape),
+            J.val * w)
 
 
 def _area_jets(X: np.ndarray, lo: Jet2, hi: Jet2):
@@ -221,21 +411,21 @@ def _area_jets(X: np.ndarray, lo: Jet2, hi: Jet2):
     return J - area_b, area_b
 
 
-def _areas(X: np.ndarray, lo: Jet2, hi: Jet2):
+def _areas(X: np.ndarray, bounds: _Bounds):
     """Values (2, K) and gradients (2, K, m) of the nodal areas A_a, A_b of the pairs,
 
         J = |x_b − x_a| (ζ_hi − ζ_lo),   A_b = J (ζ_lo + ζ_hi)/2,   A_a = J − A_b,
 
-    by the product rule from the interval jets (the same as :func:`_area_jets`, without
-    the Hessian work)."""
+    by the product rule from the bounds (the same as :func:`_area_jets`, without the
+    Hessian work)."""
     K, m = X.shape
     d = X[:, 2:4] - X[:, 0:2]
     e = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
     de = np.zeros((K, m))
     de[:, 2:4] = d / e[:, None]
     de[:, 0:2] = -de[:, 2:4]
-    lv, hv = lo.val, hi.val
-    lg, hg = lo.grad, hi.grad
+    lv, hv = bounds.lo, bounds.hi
+    lg, hg = bounds.grads(m)
     width = hv - lv
     J = e * width
     dJ = width[:, None] * de + e[:, None] * (hg - lg)
@@ -265,6 +455,7 @@ def weighted_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarr
     """
     if n_gauss < 2:
         raise ValueError("mortar integration needs n_gauss >= 2")
+    chain_m = master_seg                     # the caller's array: identifies the chain
     master_seg = np.asarray(master_seg, dtype=np.int64).reshape(-1, 2)
     L = curve.stencil_size
     m = 2 * (2 + L)
@@ -272,57 +463,61 @@ def weighted_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarr
     pm = np.asarray(pairs[1], dtype=np.int64)
 
     # cheap float pass first: only contributing pairs get the (…, m, m) jet work
-    seg_s = np.asarray(slave_seg, dtype=np.int64).reshape(-1, 2)
     xs = np.asarray(slave_x, dtype=float)
-    na, nb = seg_s[ps, 0], seg_s[ps, 1]
-    xa0, xb0 = xs[na], xs[nb]
-    keep = _prepass(xa0, xb0, curve, master_x, pm)[2] if ps.shape[0] else ps.astype(bool)
-    ps, pm = ps[keep], pm[keep]
-    K = ps.shape[0]
     empty_coo = Triplets(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))
+    if ps.shape[0] == 0:
+        e = NodalContributions.empty(2, L)
+        return e, NodalContributions.empty(2, L), empty_coo, empty_coo
+    lay = _layout(ps, pm, slave_seg, chain_m, master_seg.shape[0])
+    xa0, xb0 = _columns(xs, lay.na), _columns(xs, lay.nb)
+    lo, hi, keep, mix = _prepass(xa0, xb0, curve, master_x, lay)
+    keep = np.flatnonzero(keep)
+    ps, pm = ps.take(keep), pm.take(keep)
+    ends = _Ends(lo, hi, mix).subset(keep)
+    K = ps.shape[0]
     if K == 0:
         e = NodalContributions.empty(2, L)
         return e, NodalContributions.empty(2, L), empty_coo, empty_coo
 
-    na, nb = na[keep], nb[keep]
+    na, nb = lay.na.take(keep), lay.nb.take(keep)
     stencil = curve.stencil(pm)
-    X = np.concatenate([xa0[keep], xb0[keep], curve.points(master_x)[stencil].reshape(K, 2 * L)],
-                       axis=1)
+    X = np.empty((K, m))
+    for col, v in enumerate(xa0 + xb0):        # columns x_a, y_a, x_b, y_b
+        X[:, col] = v.take(keep)
+    X[:, 4:] = curve.points(master_x)[stencil].reshape(K, 2 * L)
 
-    # outputs: rows [0, K) for node a, [K, 2K) for node b
-    val = np.empty((2, 2 * K))
-    grad = np.empty((2, 2 * K, m))
-    ghess = np.empty((2 * K, m, m))
+    # outputs per (node a / b, pair): reshaped to rows [0, K) for node a, [K, 2K) for node b
+    val = np.empty((2, 2, K))                   # (gap / area, node, pair)
+    grad = np.empty((2, 2, K, m))
     z = np.empty((n_gauss, K))
     xv = np.empty((n_gauss, K))
     Jw = np.empty((n_gauss, K))
     test = curve.hat_test
     if test:
-        tgrad = np.empty((2 * K, 8))
-        tjac = np.empty((2 * K, 8, m))
-    intervals = []
+        tgrad = np.empty((2, K, 8))
+    gap_blocks, test_blocks, bounds_blocks = [], [], []
     for b0 in range(0, K, block):
         b1 = min(b0 + block, K)
-        jets, (lo, hi), z[:, b0:b1], xv[:, b0:b1], Jw[:, b0:b1] = _pair_block(
-            X[b0:b1], pm[b0:b1], curve, n_gauss, test)
-        for off, jet in ((0, jets[0]), (K, jets[1])):
-            val[0, off + b0:off + b1] = jet.val
-            grad[0, off + b0:off + b1] = jet.grad[:, :m]
-            ghess[off + b0:off + b1] = jet.hess[:, :m, :m]
-        if test:
-            for off, jet in ((0, jets[2]), (K, jets[3])):
-                tgrad[off + b0:off + b1] = jet.grad[:, m:]
-                tjac[off + b0:off + b1] = jet.hess[:, m:, :m]
-        av, ag = _areas(X[b0:b1], lo, hi)
-        val[1, b0:b1], val[1, K + b0:K + b1] = av
-        grad[1, b0:b1], grad[1, K + b0:K + b1] = ag
-        intervals.append((b0, b1, lo, hi))
+        gaps, tests, bounds, z[:, b0:b1], xv[:, b0:b1], Jw[:, b0:b1] = _pair_block(
+            X[b0:b1], pm[b0:b1], curve, n_gauss,
+            ends if b1 - b0 == K else ends.subset(slice(b0, b1)), test)
+        # values and gradients now; the Hessians when the tangent asks (_Deferred)
+        with ad.gradients_only():
+            q = _nodal(gaps)
+            val[0, :, b0:b1] = q.val
+            grad[0, :, b0:b1] = q.grad[..., :m]
+            if test:
+                tgrad[:, b0:b1] = _nodal(tests).grad[..., m:]
+        val[1, :, b0:b1], grad[1, :, b0:b1] = _areas(X[b0:b1], bounds)
+        gap_blocks.append((b0, b1, gaps))
+        test_blocks.append((b0, b1, tests))
+        bounds_blocks.append((b0, b1, bounds))
 
     def area_hessian() -> np.ndarray:
         # the contact terms need only ∇A: the area Hessian is built on demand
         H = np.empty((2 * K, m, m))
-        for b0, b1, lo, hi in intervals:
-            area_a, area_b = _area_jets(X[b0:b1], lo, hi)
+        for b0, b1, bounds in bounds_blocks:
+            area_a, area_b = _area_jets(X[b0:b1], *bounds.jets(m))
             H[b0:b1] = area_a.hess
             H[K + b0:K + b1] = area_b.hess
         return H
@@ -330,12 +525,16 @@ def weighted_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarr
     node = np.concatenate([na, nb])
     slave_nodes = np.tile(np.stack([na, nb], axis=1), (2, 1))
     master_nodes = np.tile(stencil, (2, 1))
-    gap = NodalContributions(node, slave_nodes, master_nodes, val[0], grad[0], ghess)
+    gap = NodalContributions(node, slave_nodes, master_nodes, val[0].reshape(2 * K),
+                             grad[0].reshape(2 * K, m),
+                             _Deferred(K, gap_blocks, slice(0, m), slice(0, m), (m, m)))
     mc, md = master_seg[pm, 0], master_seg[pm, 1]
     if test:
-        gap.test = MasterTest(np.tile(np.stack([na, nb, mc, md], axis=1), (2, 1)), tgrad, tjac)
+        gap.test = MasterTest(np.tile(np.stack([na, nb, mc, md], axis=1), (2, 1)),
+                              tgrad.reshape(2 * K, 8),
+                              _Deferred(K, test_blocks, slice(m, m + 8), slice(0, m), (8, m)))
     area = NodalContributions(node.copy(), slave_nodes.copy(), master_nodes.copy(),
-                              val[1], grad[1], area_hessian)
+                              val[1].reshape(2 * K), grad[1].reshape(2 * K, m), area_hessian)
 
     # mortar matrices (values only), 1-point-per-Gauss sums of N_j N_k and N_j N̂_l
     Na = (1.0 - z) * Jw

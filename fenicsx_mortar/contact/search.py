@@ -6,7 +6,8 @@ centre, h half extent). A k-d tree over the box centres finds every pair whose c
 within the Chebyshev distance 2·radius + max h_s + max h_m (a necessary condition), then the
 exact test above is applied vectorized and the pairs are sorted through one integer key.
 Cost ~ N log N + (number of candidates) as long as segment lengths are comparable; one very
-long segment widens the tree query for all.
+long segment widens the tree query for all. While the nodes move little (Newton iterations)
+the tree search is reused: see :func:`candidate_pairs`.
 """
 from __future__ import annotations
 
@@ -24,30 +25,85 @@ def segment_boxes(x: np.ndarray, seg: np.ndarray) -> Tuple[np.ndarray, np.ndarra
     return 0.5 * (p + q), 0.5 * np.abs(q - p)
 
 
-def candidate_pairs(xs: np.ndarray, seg_s: np.ndarray, xm: np.ndarray, seg_m: np.ndarray,
-                    radius: float) -> Tuple[np.ndarray, np.ndarray]:
-    """All (slave segment, master segment) index pairs whose inflated boxes overlap.
+#: candidate supersets of the last few searches (see candidate_pairs)
+_supersets: list = []
+#: a superset is searched with the radius enlarged by 2·SLACK·radius and serves while no
+#: node has moved by more than SLACK·radius (per coordinate) since
+SLACK = 0.25
 
-    Returned sorted by slave segment, then master segment.
-    """
-    cs, hs = segment_boxes(xs, seg_s)
-    cm, hm = segment_boxes(xm, seg_m)
-    empty = np.zeros(0, dtype=np.int64)
-    if cs.shape[0] == 0 or cm.shape[0] == 0:
-        return empty, empty.copy()
+
+def _overlap(cs, hs, cm, hm, i: np.ndarray, j: np.ndarray, radius: float) -> np.ndarray:
+    """The exact test |c_s − c_m| ≤ h_s + h_m + 2·radius on both axes for the index pairs
+    (i, j), on contiguous columns gathered with take (several times faster than fancy
+    indexing of the (n, 2) arrays)."""
+    r2 = 2.0 * radius
+    ok = None
+    for axis in (0, 1):
+        c_s, h_s = np.ascontiguousarray(cs[:, axis]), np.ascontiguousarray(hs[:, axis])
+        c_m, h_m = np.ascontiguousarray(cm[:, axis]), np.ascontiguousarray(hm[:, axis])
+        test = np.abs(c_s.take(i) - c_m.take(j)) <= h_s.take(i) + h_m.take(j) + r2
+        ok = test if ok is None else ok & test
+    return ok
+
+
+def _search(cs, hs, cm, hm, radius: float) -> Tuple[np.ndarray, np.ndarray]:
+    """Candidate pairs from the boxes, sorted by (slave, master): k-d tree, exact test."""
     reach = 2.0 * float(radius) + hs.max() + hm.max()
     # relative slack so that touching boxes are not lost to rounding in the tree
     reach *= 1.0 + 1e-12
     found = cKDTree(cs).sparse_distance_matrix(cKDTree(cm), reach, p=np.inf,
                                                output_type="ndarray")
-    i = found["i"]
-    j = found["j"]
-    # exact box test per axis on contiguous columns (cheaper than a (n, 2) all())
-    r2 = 2.0 * radius
-    ok = np.abs(cs[i, 0] - cm[j, 0]) <= hs[i, 0] + hm[j, 0] + r2
-    ok &= np.abs(cs[i, 1] - cm[j, 1]) <= hs[i, 1] + hm[j, 1] + r2
+    i = np.ascontiguousarray(found["i"], dtype=np.int64)
+    j = np.ascontiguousarray(found["j"], dtype=np.int64)
+    ok = _overlap(cs, hs, cm, hm, i, j, radius)
     # sorted by (slave, master) through one integer key
     nm = np.int64(cm.shape[0])
-    key = i[ok].astype(np.int64) * nm + j[ok]
+    key = i[ok] * nm + j[ok]
     key.sort()
     return key // nm, key % nm
+
+
+def _superset(xs, seg_s, xm, seg_m, radius: float, cs, hs, cm, hm):
+    """Sorted pairs containing every candidate of the current coordinates: a kept superset
+    while the nodes stay within SLACK·radius of where it was searched, else a new one.
+
+    Why it contains them: moving the nodes by at most δ per coordinate moves each box
+    centre and changes each half extent by at most δ, so a pair whose boxes overlap now
+    satisfied |c_s − c_m| ≤ h_s + h_m + 2·radius + 4δ there, the test of radius + 2δ."""
+    slack = SLACK * float(radius)
+    for entry in _supersets:
+        (ss, sm, r, x0s, x0m), pairs = entry
+        if (r == radius and ss is seg_s and sm is seg_m and x0s.shape == xs.shape
+                and x0m.shape == xm.shape
+                # a margin of 1 % for the rounding of the box arithmetic
+                and np.abs(xs - x0s).max(initial=0.0) <= 0.99 * slack
+                and np.abs(xm - x0m).max(initial=0.0) <= 0.99 * slack):
+            return pairs
+    pairs = _search(cs, hs, cm, hm, float(radius) + 2.0 * slack)
+    # the key holds the segment arrays themselves (identity, not a copy: they are the
+    # surfaces' fixed topology) and copies of the coordinates
+    _supersets.insert(0, ((seg_s, seg_m, radius, xs.copy(), xm.copy()), pairs))
+    del _supersets[4:]
+    return pairs
+
+
+def candidate_pairs(xs: np.ndarray, seg_s: np.ndarray, xm: np.ndarray, seg_m: np.ndarray,
+                    radius: float) -> Tuple[np.ndarray, np.ndarray]:
+    """All (slave segment, master segment) index pairs whose inflated boxes overlap.
+
+    Returned sorted by slave segment, then master segment.
+
+    Between Newton iterations the nodes move little: the tree search is made for a slightly
+    larger radius once (:func:`_superset`), and each call redoes only the exact box test
+    on that superset — the same pairs, in the same order, as a search of its own.
+    """
+    xs = np.asarray(xs, dtype=float)
+    xm = np.asarray(xm, dtype=float)
+    cs, hs = segment_boxes(xs, seg_s)
+    cm, hm = segment_boxes(xm, seg_m)
+    empty = np.zeros(0, dtype=np.int64)
+    if cs.shape[0] == 0 or cm.shape[0] == 0:
+        return empty, empty.copy()
+    i, j = _superset(xs, seg_s, xm, seg_m, radius, cs, hs, cm, hm)
+    ok = _overlap(cs, hs, cm, hm, i, j, radius)
+    return i[ok], j[ok]
