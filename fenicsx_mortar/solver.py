@@ -36,6 +36,7 @@ class Hook(Protocol):
     def reject_step(self) -> None: ...
     def record(self) -> dict: ...
     def couplings(self) -> np.ndarray: ...        # (k, 2) global dof pairs for the sparsity
+    path_dependent: bool                          # history (friction): the path matters
 
 
 class Timings(dict):
@@ -240,14 +241,16 @@ def run_load_steps(solver: NewtonSolver, steps: Steps, on_step: Callable[[int, f
                    on_progress: Callable[[str], None] = lambda s: None,
                    max_augmentations: int = 50, t_start: float = 0.0, k_start: int = 0,
                    should_stop: Callable[[], str | None] = lambda: None) -> tuple[bool, str]:
-    """Advance pseudo-time through ``steps`` from ``t_start``; a failed increment is tried
-    once more with full Newton steps (no line search), then halved, at most ``max_cuts``
-    times in a row; the increment doubles again after each converged step (never past the
-    next target). Returns (completed, message)."""
+    """Advance pseudo-time through ``steps`` from ``t_start``; halve a failed increment, at
+    most ``max_cuts`` times in a row and not below the floor, and double it again after each
+    converged step (never past the next target). A failed increment is tried once more with
+    full Newton steps (no line search) before it is cut; with path-dependent hooks
+    (friction) only when it cannot be cut any more. Returns (completed, message)."""
     t = t_start
     k = k_start
     line_search = solver.settings.petsc.get("snes_linesearch_type", solver.settings.line_search)
     fallback = line_search != "basic"
+    history = any(h.path_dependent for h in solver.hooks)
     for target in steps.targets():
         if target <= t + 1e-14 * max(1.0, abs(target)):
             continue
@@ -263,10 +266,12 @@ def run_load_steps(solver: NewtonSolver, steps: Steps, on_step: Callable[[int, f
             saved = solver.save_state()
             on_progress(f"step {k + 1} t={t_try:.6g} ...")
             res = _attempt(solver, t_try, max_augmentations)
-            if not res.converged and fallback and not should_stop():
+            last = dt * 0.5 < steps.floor() or cuts >= steps.max_cuts
+            if not res.converged and fallback and (last or not history) and not should_stop():
                 # the active set makes the residual only semismooth: a line search can stall
                 # on its kinks where full Newton steps go through (Hertz, mortar, penalty
-                # 10 E/h at h = a/2): one retry of the increment before cutting it
+                # 10 E/h at h = a/2). With friction only before giving up: another attempt
+                # sequence is another (equally valid) load path
                 for h in solver.hooks:
                     h.reject_step()
                 solver.restore_state(saved)

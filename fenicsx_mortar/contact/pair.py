@@ -71,6 +71,10 @@ class PairHook:
             self._fric_seg = np.full(slave.n, -1, dtype=np.int64)
         self.state = None
 
+    @property
+    def path_dependent(self) -> bool:
+        return self.friction is not None
+
     # -- kinematics ---------------------------------------------------------------------
     def update(self, u) -> None:
         with self.timings("contact"):
