@@ -266,15 +266,15 @@ def run_load_steps(solver: NewtonSolver, steps: Steps, on_step: Callable[[int, f
             saved = solver.save_state()
             on_progress(f"step {k + 1} t={t_try:.6g} ...")
             res = _attempt(solver, t_try, max_augmentations)
-            last = dt * 0.5 < steps.floor() or cuts >= steps.max_cuts
-            if not res.converged and fallback and (last or not history) and not should_stop():
+            # would a failure of this increment end the run?
+            below_floor, out_of_cuts = dt * 0.5 < steps.floor(), cuts >= steps.max_cuts
+            retry = fallback and (below_floor or out_of_cuts or not history)
+            if not res.converged and retry and not should_stop():
                 # the active set makes the residual only semismooth: a line search can stall
                 # on its kinks where full Newton steps go through (Hertz, mortar, penalty
                 # 10 E/h at h = a/2). With friction only before giving up: another attempt
                 # sequence is another (equally valid) load path
-                for h in solver.hooks:
-                    h.reject_step()
-                solver.restore_state(saved)
+                _undo(solver, saved)
                 on_progress(f"retrying with full Newton steps: {res.reason}")
                 solver.set_line_search("basic")
                 full = _attempt(solver, t_try, max_augmentations)
@@ -291,24 +291,29 @@ def run_load_steps(solver: NewtonSolver, steps: Steps, on_step: Callable[[int, f
                 dt *= 2.0  # after a cut, grow back towards the scene's increment
                 cuts = 0
                 continue
-            for h in solver.hooks:
-                h.reject_step()
-            solver.restore_state(saved)
+            _undo(solver, saved)
             solver.bulk.set_time(t)
             if should_stop():
                 continue  # reported at the top of the loop
             cuts += 1
-            if dt * 0.5 < steps.floor():
+            if below_floor:
                 return False, (f"stopped at pseudo-time {t:.6g} (last converged step {k}): the "
                                f"increment would fall below the floor {steps.floor():.3g} "
                                f"(steps.min_increment); {res.reason}")
-            if cuts > steps.max_cuts:
+            if out_of_cuts:
                 return False, (f"stopped at pseudo-time {t:.6g} (last converged step {k}): the "
                                f"increment to {t_try:.6g} failed after {steps.max_cuts} cuts; "
                                f"{res.reason}")
             dt *= 0.5
             on_progress(f"cut: {res.reason}; retrying with increment {dt:.3g}")
     return True, f"completed {k} steps up to pseudo-time {t:.6g}"
+
+
+def _undo(solver: NewtonSolver, saved: PETSc.Vec) -> None:
+    """Back to the state before a failed attempt (iterate and the hooks' step history)."""
+    for h in solver.hooks:
+        h.reject_step()
+    solver.restore_state(saved)
 
 
 def _attempt(solver: NewtonSolver, t_try: float, max_augmentations: int) -> StepResult:

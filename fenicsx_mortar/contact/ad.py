@@ -188,11 +188,6 @@ def _eh(h, p, k: int):
     return out
 
 
-def _place(H: np.ndarray, h: np.ndarray, p, coef=None) -> None:
-    """H[p, p] += coef · h (p None: the whole block)."""
-    _add_block(H, h, p, p, coef)
-
-
 #: coefficient marking a Hessian term that is a fresh array of the caller's: it may become
 #: the sum itself
 _FRESH = "fresh"
@@ -484,9 +479,9 @@ def _chain2(u: Jet2, v: Jet2, f, fu, fv, fuu, fuv, fvv) -> Jet2:
     hess = _outer(gu, a)
     hess += _outer(gv, fuv * gu + fvv * gv)
     if u._h is not None:
-        _place(hess, _lift(u._h, 2, nd), pa, fu)
+        _add_block(hess, _lift(u._h, 2, nd), pa, pa, fu)
     if v._h is not None:
-        _place(hess, _lift(v._h, 2, nd), pb, fv)
+        _add_block(hess, _lift(v._h, 2, nd), pb, pb, fv)
     return Jet2._raw(f, grad, hess, k_idx, u._m)
 
 

@@ -73,14 +73,7 @@ class NodalContributions:
         with a node in contact: a kernel that defers them (``hess`` an object with a
         ``weighted(wa, wb, pairs)`` method, as the mortar kernel's) forms just these sums,
         one per pair, as the Hessian of wa q_k + wb q_{k+h}."""
-        weighted = getattr(self._hess, "weighted", None)
-        if weighted is not None:
-            return weighted(wa, wb, pairs)
-        H = self.hess
-        h = self.size // 2
-        out = H[:h][pairs] * wa[:, None, None]
-        out += H[h:][pairs] * wb[:, None, None]
-        return out
+        return _pair_weighted(self._hess, lambda: self.hess, wa, wb, pairs)
 
     def __repr__(self) -> str:
         return f"NodalContributions(size={self.size}, m={self.m})"
@@ -135,14 +128,7 @@ class MasterTest:
     def pair_jacobian(self, wa: np.ndarray, wb: np.ndarray, pairs) -> np.ndarray:
         """wa ∂T_k/∂x + wb ∂T_{k+h}/∂x for the contributions k in ``pairs`` of the first half
         (h = K/2; rows k and k + h share nodes and local coordinates)."""
-        weighted = getattr(self._jac, "weighted", None)
-        if weighted is not None:
-            return weighted(wa, wb, pairs)
-        jac = self.jac
-        h = jac.shape[0] // 2
-        out = jac[:h][pairs] * wa[:, None, None]
-        out += jac[h:][pairs] * wb[:, None, None]
-        return out
+        return _pair_weighted(self._jac, lambda: self.jac, wa, wb, pairs)
 
     def global_indices(self, n_slave: int) -> np.ndarray:
         """(K, 8) positions in the stacked NODE coordinates [slave nodes, master nodes]."""
@@ -181,3 +167,17 @@ def chain_links(seg: np.ndarray, n_nodes: int) -> Tuple[np.ndarray, np.ndarray]:
     before[seg[:, 1]] = idx
     after[seg[:, 0]] = idx
     return before, after
+
+
+def _pair_weighted(stored, full, wa: np.ndarray, wb: np.ndarray, pairs) -> np.ndarray:
+    """wa D_k + wb D_{k+h} over the pairs: by the deferred object's own ``weighted`` when
+    ``stored`` has one, else from the full (K, …) array ``full()`` (h = K/2)."""
+    weighted = getattr(stored, "weighted", None)
+    if weighted is not None:
+        return weighted(wa, wb, pairs)
+    D = full()
+    h = D.shape[0] // 2
+    out = D[:h][pairs] * wa[:, None, None]
+    out += D[h:][pairs] * wb[:, None, None]
+    return out
+

@@ -73,7 +73,7 @@ pair.
 from __future__ import annotations
 
 import functools
-from typing import NamedTuple, Sequence, Tuple
+from typing import NamedTuple, Tuple
 
 import numpy as np
 
@@ -93,16 +93,11 @@ def gauss_legendre_01(n: int) -> Tuple[np.ndarray, np.ndarray]:
     return s, w
 
 
-def _interval(xa: Vec2, xb: Vec2, P: Sequence[Vec2], curve: MasterCurve, pm: np.ndarray,
-              nodes=None):
-    """The ends ζ_c, ζ_d of the master segment's shadow on the slave segment (jets or
-    arrays, unclamped) and the boolean 'slave faces master' per pair.
-    ``nodes``: (x_c, x_d, t̄_c, t̄_d) per pair if already known (values; P is then unused)."""
-    if nodes is None:
-        xc, xd = curve.node_points(pm, P)
-        tc, td = curve.node_tangents(pm, P)
-    else:
-        xc, xd, tc, td = nodes
+def _interval(xa: Vec2, xb: Vec2, nodes):
+    """The ends ζ_c, ζ_d of the master segment's shadow on the slave segment (unclamped)
+    and the boolean 'slave faces master' per pair; ``nodes`` = (x_c, x_d, t̄_c, t̄_d) per
+    pair."""
+    xc, xd, tc, td = nodes
     e = ad.sub(xb, xa)
     den_c = ad.dot(e, tc)
     den_d = ad.dot(e, td)
@@ -231,8 +226,7 @@ def _layout(ps: np.ndarray, pm: np.ndarray, slave_seg, master_seg, n_master_seg:
     seg_s = np.asarray(slave_seg, dtype=np.int64).reshape(-1, 2)
     used = np.zeros(n_master_seg, dtype=bool)
     used[pm] = True
-    lay = _Layout(ps.copy(), pm.copy(), np.ascontiguousarray(seg_s[:, 0]).take(ps),
-                  np.ascontiguousarray(seg_s[:, 1]).take(ps), np.flatnonzero(used),
+    lay = _Layout(ps.copy(), pm.copy(), *_columns(seg_s, ps), np.flatnonzero(used),
                   (np.cumsum(used) - 1).take(pm))
     # the key holds the chains themselves (identity; they are the surfaces' topology)
     _layouts.insert(0, (lay, slave_seg, master_seg))
@@ -254,7 +248,7 @@ def _prepass(xa: Vec2, xb: Vec2, curve: MasterCurve, master_x, lay: _Layout):
     """Values (ζ_lo, ζ_hi, keep, mix of :func:`_clamp`) of the candidate pairs (slave end
     points xa, xb)."""
     nodes = _node_values(curve, master_x, lay)
-    zc, zd, facing = _interval(xa, xb, None, curve, lay.pm, nodes)
+    zc, zd, facing = _interval(xa, xb, nodes)
     lo, hi, mix = _clamp(np.asarray(zc, dtype=float), np.asarray(zd, dtype=float))
     return lo, hi, facing & (hi > lo), mix
 
