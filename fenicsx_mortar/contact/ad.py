@@ -59,6 +59,11 @@ def gradients_only():
         _second_order = saved
 
 
+def second_order() -> bool:
+    """Whether jets carry Hessians here (False inside :func:`gradients_only`)."""
+    return _second_order
+
+
 def _lift(d: np.ndarray, nlead: int, nd: int) -> np.ndarray:
     """Give a derivative array (nlead leading axes + batch) a batch of nd axes (numpy rule)."""
     missing = nd - (d.ndim - nlead)

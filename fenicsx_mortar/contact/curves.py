@@ -160,6 +160,28 @@ class MasterCurve(abc.ABC):
         r = ad.sub(xs, x)
         return ad.dot(r, a), ad.dot(r, b) - ad.dot(a, a)
 
+    def pieces(self, seg_index, P: Sequence[Vec2]) -> Tuple[np.ndarray, list]:
+        """Power form of x(ξ) on the segments, values only: ``(breaks, [C, …])`` with one
+        coefficient list C = [C_0, C_1, …] (x = Σ_r C_r ξ^r, each C_r a Vec2) per piece of
+        the segment's curve; piece q holds for breaks[q−1] ≤ ξ < breaks[q] (``breaks``
+        (n_pieces − 1, *B), +inf padded; the first and last pieces extend beyond)."""
+        return np.empty((0,)), [self._coefficients(seg_index, _values(P))]
+
+    def _coefficients(self, seg_index, P: Sequence[Vec2]) -> list:
+        """[C_0, …, C_deg] of a one-piece curve (jets or values)."""
+        raise NotImplementedError(f"{type(self).__name__} has no power form")
+
+    def condition_polynomial(self, seg_index, xs: Vec2, P: Sequence[Vec2]):
+        """Power coefficients of :meth:`condition` F(ξ) per piece, values only:
+        ``(breaks, Fc)``, Fc (n_pieces, degree + 1, *B) — the Newton iterations of
+        :func:`.projection.solve_on_segments` evaluate F and F′ from these instead of the
+        curve. Closest point: F = (x_s − x)·x′ = Σ_k (x_s·D_k) ξ^k − Σ_{i,j} (C_i·D_j) ξ^{i+j},
+        D_j = (j+1) C_{j+1} the coefficients of x′."""
+        breaks, pieces = self.pieces(seg_index, P)
+        xs = _value(xs)
+        return breaks, np.stack([_stack_coefficients(_closest_point_poly(C, xs))
+                                 for C in pieces])
+
     def project(self, seg_index, xs: Vec2, P: Sequence[Vec2]) -> Scalar:
         """ξ̄ of the projection of xs onto the segment's curve (unclamped; −1 or 2 when the
         root lies beyond the search window): safeguarded Newton, jets exact to second
@@ -187,6 +209,30 @@ class MasterCurve(abc.ABC):
 def _pick(at_d, u: Vec2, v: Vec2) -> Vec2:
     """u where ``at_d`` is False, v where True (per batch entry)."""
     return ad.where(at_d, v[0], u[0]), ad.where(at_d, v[1], u[1])
+
+
+def _value(v: Vec2) -> Vec2:
+    return (ad.value(v[0]), ad.value(v[1]))
+
+
+def _values(P: Sequence[Vec2]) -> list:
+    return [_value(p) for p in P]
+
+
+def _closest_point_poly(C: Sequence[Vec2], xs: Vec2) -> list:
+    """Power coefficients of F = (x_s − x)·x′ for x = Σ_r C_r ξ^r (values)."""
+    n = len(C)
+    D = [((r + 1) * C[r + 1][0], (r + 1) * C[r + 1][1]) for r in range(n - 1)]
+    F = [xs[0] * D[k][0] + xs[1] * D[k][1] for k in range(n - 1)] + [0.0] * (n - 1)
+    for i in range(n):
+        for j in range(n - 1):
+            F[i + j] = F[i + j] - (C[i][0] * D[j][0] + C[i][1] * D[j][1])
+    return F
+
+
+def _stack_coefficients(F: list) -> np.ndarray:
+    """(degree + 1, *B) array of scalar coefficients that broadcast to a common batch."""
+    return np.stack(np.broadcast_arrays(*[np.asarray(f, dtype=float) for f in F]))
 
 
 def _horner_derivatives(C: Sequence[Vec2], xi, order: int) -> list:
@@ -275,6 +321,9 @@ class Polyline(_NeighbourStencil):
         a = ad.sub(d, c)
         out = [ad.add(c, ad.scale(a, xi)), a, (0.0, 0.0)]
         return out[:order + 1]
+
+    def _coefficients(self, seg_index, P):
+        return [P[1], ad.sub(P[2], P[1])]
 
     def node_tangents(self, seg_index, P):
         return self.averaged_tangents(seg_index, P)
@@ -366,6 +415,15 @@ class AveragedNormals(_NeighbourStencil):
         nc, nd = self.node_normals(seg_index, P)
         return ad.unit(ad.add(nc, ad.scale(ad.sub(nd, nc), xi)))
 
+    def condition_polynomial(self, seg_index, xs, P):
+        # F = (r₀ + r₁ξ) × (m₀ + m₁ξ), r₀ = x_s − x_c, r₁ = −(x_d − x_c), m₀ = n̄_c, m₁ = n̄_d − n̄_c
+        P, xs = _values(P), _value(xs)
+        c, d = P[1], P[2]
+        m0, nd = self.node_normals(seg_index, P)
+        r0, r1, m1 = ad.sub(xs, c), ad.sub(c, d), ad.sub(nd, m0)
+        F = [ad.cross(r0, m0), ad.cross(r0, m1) + ad.cross(r1, m0), ad.cross(r1, m1)]
+        return np.empty((0,)), _stack_coefficients(F)[None]
+
     def condition(self, seg_index, xi, xs, P, derivative=False):
         c, d = P[1], P[2]
         nc, nd = self.node_normals(seg_index, P)
@@ -393,15 +451,31 @@ class Hermite(_NeighbourStencil):
     hat_test = True
 
     def derivatives(self, seg_index, xi, P, order):
-        _, c, d = P[0], P[1], P[2]
+        return _horner_derivatives(self._coefficients(seg_index, P), xi, order)
+
+    _memo = None
+
+    def _coefficients(self, seg_index, P):
+        # the kernels evaluate one batch's curve several times (the projection's chord
+        # steps, the point, the normal): the last coefficients are kept; the memo holds
+        # its arguments, so their ids are not reused while it exists
+        key = (id(seg_index), ad.second_order()) + tuple(id(v) for p in P for v in p)
+        if self._memo is not None and self._memo[0] == key:
+            return self._memo[2]
+        C = self._hermite_coefficients(seg_index, P)
+        self._memo = (key, (seg_index, P), C)
+        return C
+
+    def _hermite_coefficients(self, seg_index, P):
+        # power form x̂ = x_c + ξ T_c + ξ² (3e − 2T_c − T_d) + ξ³ (−2e + T_c + T_d)
+        c, d = P[1], P[2]
         ta, tb = self.averaged_tangents(seg_index, P)
         e = ad.sub(d, c)
         l = ad.norm(e)
         Tc, Td = ad.scale(ad.unit(ta), l), ad.scale(ad.unit(tb), l)
-        # power form x̂ = x_c + ξ T_c + ξ² (3e − 2T_c − T_d) + ξ³ (−2e + T_c + T_d), Horner
         C2 = ad.sub(ad.sub(ad.scale(e, 3.0), ad.scale(Tc, 2.0)), Td)
         C3 = ad.add(ad.add(ad.scale(e, -2.0), Tc), Td)
-        return _horner_derivatives([c, Tc, C2, C3], xi, order)
+        return [c, Tc, C2, C3]
 
     def node_tangents(self, seg_index, P):
         return self.averaged_tangents(seg_index, P)
@@ -655,8 +729,11 @@ class BSpline(MasterCurve):
         seg = np.asarray(seg_index, dtype=np.int64)
         xv = ad.value(xi)
         piece = (xv >= self._breaks[seg, 0]).astype(np.int64) + (xv >= self._breaks[seg, 1])
+        return _horner_derivatives(self._piece_coefficients(seg, piece, P), xi, order)
+
+    def _piece_coefficients(self, seg, piece, P) -> list:
+        """Power coefficients C_r = Σ_s W_sr P_s of the pieces (linear in P: cheap jets)."""
         W = self._WT[:, 3 * seg + piece]                        # (24, *B), contiguous rows
-        # power coefficients C_r = Σ_s W_sr P_s (linear in P: cheap jets), then Horner
         C = []
         for r in range(4):
             v = None
@@ -664,7 +741,14 @@ class BSpline(MasterCurve):
                 t = ad.scale(P[sl], W[4 * sl + r])
                 v = t if v is None else ad.add(v, t)
             C.append(v)
-        return _horner_derivatives(C, xi, order)
+        return C
+
+    def pieces(self, seg_index, P):
+        seg = np.asarray(seg_index, dtype=np.int64)
+        P = _values(P)
+        breaks = np.moveaxis(self._breaks[seg], -1, 0)
+        return breaks, [self._piece_coefficients(seg, np.full(seg.shape, q), P)
+                        for q in range(3)]
 
     def node_points(self, seg_index, P):
         z = np.zeros(np.shape(seg_index))

@@ -12,7 +12,9 @@ wanted root:
       F(ξ) = (x_s − x(ξ)) × m(ξ),    m = (1−ξ) n̄_c + ξ n̄_d   (quadratic in ξ).
 
 :func:`solve_on_segments` finds, per batch entry, the root on the segment's own curve piece
-(extended beyond ξ ∈ [0, 1] as a polynomial) inside the window ``WINDOW``:
+(extended beyond ξ ∈ [0, 1] as a polynomial) inside the window ``WINDOW``, evaluating F from
+its power coefficients (:meth:`~.curves.MasterCurve.condition_polynomial`, values only: a
+few array operations per iteration instead of the curve's jet-capable evaluation):
 
 1. bracketing: F at ``N_SAMPLES`` equidistant ξ of the window; among the sign changes
    F > 0 → F ≤ 0 the one nearest to x_s is taken;
@@ -65,6 +67,22 @@ def _is_jet(*items) -> bool:
     return any(isinstance(c, Jet2) for v in items for c in v)
 
 
+def _polynomial(breaks: np.ndarray, Fc: np.ndarray, xi):
+    """F(ξ) and F′(ξ) from per-piece power coefficients (:meth:`~.curves.MasterCurve.
+    condition_polynomial`): Horner on every piece, then the piece that holds at ξ."""
+    out = []
+    for c in Fc:
+        F, dF = c[-1], 0.0
+        for r in range(c.shape[0] - 2, -1, -1):
+            dF = dF * xi + F
+            F = F * xi + c[r]
+        out.append((F, dF))
+    if len(out) == 1:
+        return out[0]
+    piece = sum((xi >= b).astype(np.int64) for b in breaks)
+    return (np.choose(piece, [F for F, _ in out]), np.choose(piece, [dF for _, dF in out]))
+
+
 def solve_on_segments(curve, seg_index, xs, P, window=WINDOW, n_samples: int = N_SAMPLES,
                       max_iter: int = MAX_ITER):
     """Float root ξ of the curve's projection condition on each entry's segment.
@@ -82,7 +100,8 @@ def solve_on_segments(curve, seg_index, xs, P, window=WINDOW, n_samples: int = N
     nd = len(shape)
     lo, hi = window
     grid = np.linspace(lo, hi, n_samples).reshape((-1,) + (1,) * nd)
-    F = np.broadcast_to(curve.condition(seg, grid, xs, P), (n_samples,) + shape)
+    breaks, Fc = curve.condition_polynomial(seg, xs, P)
+    F = np.broadcast_to(_polynomial(breaks, Fc, grid)[0], (n_samples,) + shape)
     x = curve.derivatives(seg, grid, P, 0)[0]
     d2 = np.broadcast_to((xs[0] - x[0]) ** 2 + (xs[1] - x[1]) ** 2, (n_samples,) + shape)
 
@@ -114,7 +133,7 @@ def solve_on_segments(curve, seg_index, xs, P, window=WINDOW, n_samples: int = N
     for _ in range(max_iter):
         if not active.any():
             break
-        Fx, dFx = curve.condition(seg, xi, xs, P, derivative=True)
+        Fx, dFx = _polynomial(breaks, Fc, xi)
         Fx, dFx = np.broadcast_to(Fx, shape), np.broadcast_to(dFx, shape)
         dF = np.where(active, dFx, dF)
         right = Fx > 0.0                                  # the root lies right of xi

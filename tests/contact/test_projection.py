@@ -191,3 +191,23 @@ def test_failures_are_reported():
     xi, _, st = projection.solve_on_segments(curve, np.array([2]), far, [
         (p[0][:1], p[1][:1]) for p in P])
     assert st[0] == projection.ABOVE and xi[0] == projection.WINDOW[1]
+
+
+@pytest.mark.parametrize("smoothing", SMOOTHINGS)
+@pytest.mark.parametrize("shape", [lambda: irregular_circle()[0], wavy_open],
+                         ids=["closed", "open"])
+def test_condition_polynomial_is_the_condition(smoothing, shape):
+    # the power form the Newton iterations use equals F and F′ of the curve itself, on
+    # every piece (B-spline break points) and beyond [0, 1]
+    x, seg = shape()
+    curve = make_curve(smoothing, x, seg)
+    rng = np.random.default_rng(5)
+    segs = rng.integers(0, len(seg), 500)
+    xi = rng.uniform(-1.0, 2.0, 500)
+    xs = tuple(x[seg[segs, 0]].T + rng.uniform(-0.2, 0.2, (2, 500)))
+    P = curve.split_points(curve.local_points(segs))
+    F, dF = curve.condition(segs, xi, xs, P, derivative=True)
+    G, dG = projection._polynomial(*curve.condition_polynomial(segs, xs, P), xi)
+    scale = np.abs(F).max()
+    assert np.abs(G - F).max() < 1e-13 * scale
+    assert np.abs(dG - dF).max() < 1e-13 * np.abs(dF).max()
