@@ -22,7 +22,8 @@ What it measures
 
    Printed: the ratio contact / bulk assembly (target <= 30 %).
 
-2. **Half-rings (B3)** (``meshes/half_rings.py``, default divisions): two Neo-Hooke rings
+2. **Half-rings (B3)** (``meshes/half_rings.py``, default divisions 4 x 32 / 4 x 60, or
+   ``--rings-refine`` multiples of them in both directions): two Neo-Hooke rings
    (E = 689.56, nu = 0.32), slave ``moving_outer``, master ``fixed_inner``, mortar + ALM.
    The state is set directly: the moving ring translated 0.5 down (rigidly) into the fixed
    ring, so the lower part of the interface is active. Same breakdown and ratio.
@@ -41,6 +42,7 @@ How to run
 ----------
     .venv/bin/python benchmarks/contact_overhead.py            # all three parts, ~2 min
     .venv/bin/python benchmarks/contact_overhead.py --only scaling --reps 5
+    .venv/bin/python benchmarks/contact_overhead.py --only rings --rings-refine 1 2 4 8
 Options: ``--only {hertz,rings,scaling}`` (repeatable), ``--reps`` (timing repetitions,
 median taken), ``--sizes`` (slave segment counts for part 3), ``--clock cpu`` (process CPU
 time instead of wall time: steadier when other jobs share the machine), ``--solve-hertz``.
@@ -191,11 +193,14 @@ def hertz(reps: int, solve: bool) -> dict:
     return r
 
 
-def half_rings_scene() -> Scene:
+def half_rings_scene(refine: int = 1) -> Scene:
     neo = {"model": "neo-hooke", "E": 689.56, "nu": 0.32}
+    # the default divisions (4 x 32 fixed, 4 x 60 moving) times ``refine``
+    params = {"fixed_nr": 4 * refine, "fixed_nc": 32 * refine, "moving_nr": 4 * refine,
+              "moving_nc": 60 * refine}
     return from_dict(Scene, {
         "title": "B3 half-rings (benchmark state)",
-        "mesh": {"generator": "half_rings", "cell": "quadrilateral"},
+        "mesh": {"generator": "half_rings", "cell": "quadrilateral", "params": params},
         "bodies": [{"name": "fixed_ring", "material": neo},
                    {"name": "moving_ring", "material": neo}],
         "dirichlet": [{"boundary": "fixed_outer", "x": 0.0, "y": 0.0},
@@ -206,8 +211,8 @@ def half_rings_scene() -> Scene:
     }, "")
 
 
-def rings(reps: int) -> dict:
-    scene = half_rings_scene()
+def rings(reps: int, refine: int = 1) -> dict:
+    scene = half_rings_scene(refine)
     dom, bulk, hooks, solver = build(scene)
     # the moving ring translated 0.5 down (rigidly), the fixed ring at rest
     u = bulk.u
@@ -222,8 +227,9 @@ def rings(reps: int) -> dict:
     cells = dom.mesh.topology.index_map(2).size_global
     solver._set_iterate(solver.x)
     r = one_iteration(solver, reps)
-    report_iteration("Half-rings B3 (default divisions), moving ring 0.5 down", r,
-                     f"{cells} cells, {ndofs} dofs")
+    slave = sum(h.slave.seg.shape[0] for h in hooks)
+    report_iteration(f"Half-rings B3 ({refine} x the default divisions), moving ring 0.5 "
+                     f"down", r, f"{cells} cells, {ndofs} dofs, {slave} slave segments")
     return r
 
 
@@ -362,6 +368,8 @@ def main(argv=None) -> None:
                     help="wall time (default) or this process's CPU time (steadier on a "
                          "loaded machine)")
     ap.add_argument("--sizes", type=int, nargs="+", default=[100, 300, 1000, 3000, 10000])
+    ap.add_argument("--rings-refine", type=int, nargs="+", default=[1],
+                    help="half-rings meshes: these multiples of the default divisions")
     args = ap.parse_args(argv)
     global clock
     if args.clock == "cpu":
@@ -374,7 +382,8 @@ def main(argv=None) -> None:
     if "hertz" in parts:
         hertz(args.reps, args.solve_hertz)
     if "rings" in parts:
-        rings(args.reps)
+        for k in args.rings_refine:
+            rings(args.reps, k)
     if "scaling" in parts:
         scaling(args.sizes, args.reps)
 
