@@ -46,7 +46,8 @@ class PairHook:
         # gaps are differences of coordinates: below ~32 ulp of the largest one they are noise
         scale = max(np.abs(slave.X).max(initial=0.0), np.abs(master.X).max(initial=0.0), h)
         self.enforcement = ENFORCEMENTS[pair.enforcement.type](
-            eps, slave.n, pair.enforcement.tolerance, 32 * np.finfo(float).eps * scale)
+            eps, slave.n, pair.enforcement.tolerance, 32 * np.finfo(float).eps * scale,
+            start=nominal)
         self.radius = pair.search_radius or 2.0 * h
         self.dofs = np.concatenate([slave.dofs.ravel(), master.dofs.ravel()])
         # the master curve: rebuilt from the converged nodes at each load step (the B-spline
@@ -264,6 +265,7 @@ class PairHook:
         return again
 
     def begin_step(self) -> None:
+        self.enforcement.begin_step()
         self.augmentations = 0
         self._first_jacobian = True
         if self.state is not None:
