@@ -997,7 +997,9 @@ def _markdown(rows: list[dict], meta: dict, benches: list[str]) -> str:
         + " (docs/smoothing.md);",
         "* **enforcement**: penalty with ε = 1, 10 and 100 × E/h (`penalty-1`, `penalty-10`, "
         "`penalty-100`; E the slave body's Young's modulus, h the slave element size in the "
-        "contact zone), and the augmented Lagrangian `alm` (tolerance 1e-10, the scenes' "
+        "contact zone; ε above the pair's E/h is reached by continuation: each load step "
+        "is solved at E/h first, then with ε ×10 per converged solve, counted as "
+        "augmentations), and the augmented Lagrangian `alm` (tolerance 1e-10, the scenes' "
         "default);",
         "* **mesh level**: four per benchmark,",
         "",
