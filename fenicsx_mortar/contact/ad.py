@@ -617,13 +617,14 @@ def substitute(f: Jet2, inner: Sequence[Jet2], mix=None) -> Jet2:
         G = {i: sum(mix[i][j] * Gw[j] for j in range(len(inner)) if mix[i][j] is not None)
              for i in slot}
     fg = _lift(f._g, 1, nd)
-    fh = None if f._h is None or not _second_order else _lift(f._h, 2, nd)
     grad = _eg(fg[nz:], px, k)
-    T = None
     for i, si in slot.items():
         grad = grad + fg[si] * G[i]
-        if fh is None:
-            continue
+    if not _second_order:
+        return Jet2._raw(f.val, grad, None, u, m)
+    fh = None if f._h is None else _lift(f._h, 2, nd)
+    T = None
+    for i, si in (slot.items() if fh is not None else ()):
         C = _eg(fh[si, nz:], px, k)                             # f_{z_i x} + ½ Σ_j f_{z_i z_j} G_j
         for j, sj in slot.items():
             C = C + (0.5 * fh[si, sj]) * G[j]
@@ -635,7 +636,7 @@ def substitute(f: Jet2, inner: Sequence[Jet2], mix=None) -> Jet2:
     if fh is not None and nz < fi.shape[0]:
         terms.append((fh[nz:, nz:], px, px, None))
     for j, z in enumerate(inner):
-        if z._h is None or not _second_order:
+        if z._h is None:
             continue
         if mix is None:
             coef = fg[slot[j]] if j in slot else None

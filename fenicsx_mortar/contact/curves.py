@@ -161,24 +161,23 @@ class MasterCurve(abc.ABC):
         return ad.dot(r, a), ad.dot(r, b) - ad.dot(a, a)
 
     def pieces(self, seg_index, P: Sequence[Vec2]) -> Tuple[np.ndarray, list]:
-        """Power form of x(ξ) on the segments, values only: ``(breaks, [C, …])`` with one
+        """Power form of x(ξ) on the segments from values ``P``: ``(breaks, [C, …])`` with one
         coefficient list C = [C_0, C_1, …] (x = Σ_r C_r ξ^r, each C_r a Vec2) per piece of
         the segment's curve; piece q holds for breaks[q−1] ≤ ξ < breaks[q] (``breaks``
         (n_pieces − 1, *B), +inf padded; the first and last pieces extend beyond)."""
-        return np.empty((0,)), [self._coefficients(seg_index, _values(P))]
+        return np.empty((0,)), [self._coefficients(seg_index, P)]
 
     def _coefficients(self, seg_index, P: Sequence[Vec2]) -> list:
         """[C_0, …, C_deg] of a one-piece curve (jets or values)."""
         raise NotImplementedError(f"{type(self).__name__} has no power form")
 
     def condition_polynomial(self, seg_index, xs: Vec2, P: Sequence[Vec2]):
-        """Power coefficients of :meth:`condition` F(ξ) per piece, values only:
-        ``(breaks, Fc)``, Fc (n_pieces, degree + 1, *B) — the Newton iterations of
+        """Power coefficients of :meth:`condition` F(ξ) per piece from values ``xs``,
+        ``P``: ``(breaks, Fc)``, Fc (n_pieces, degree + 1, *B) — the Newton iterations of
         :func:`.projection.solve_on_segments` evaluate F and F′ from these instead of the
         curve. Closest point: F = (x_s − x)·x′ = Σ_k (x_s·D_k) ξ^k − Σ_{i,j} (C_i·D_j) ξ^{i+j},
         D_j = (j+1) C_{j+1} the coefficients of x′."""
         breaks, pieces = self.pieces(seg_index, P)
-        xs = _value(xs)
         return breaks, np.stack([_stack_coefficients(_closest_point_poly(C, xs))
                                  for C in pieces])
 
@@ -209,14 +208,6 @@ class MasterCurve(abc.ABC):
 def _pick(at_d, u: Vec2, v: Vec2) -> Vec2:
     """u where ``at_d`` is False, v where True (per batch entry)."""
     return ad.where(at_d, v[0], u[0]), ad.where(at_d, v[1], u[1])
-
-
-def _value(v: Vec2) -> Vec2:
-    return (ad.value(v[0]), ad.value(v[1]))
-
-
-def _values(P: Sequence[Vec2]) -> list:
-    return [_value(p) for p in P]
 
 
 def _closest_point_poly(C: Sequence[Vec2], xs: Vec2) -> list:
@@ -417,7 +408,6 @@ class AveragedNormals(_NeighbourStencil):
 
     def condition_polynomial(self, seg_index, xs, P):
         # F = (r₀ + r₁ξ) × (m₀ + m₁ξ), r₀ = x_s − x_c, r₁ = −(x_d − x_c), m₀ = n̄_c, m₁ = n̄_d − n̄_c
-        P, xs = _values(P), _value(xs)
         c, d = P[1], P[2]
         m0, nd = self.node_normals(seg_index, P)
         r0, r1, m1 = ad.sub(xs, c), ad.sub(c, d), ad.sub(nd, m0)
@@ -745,7 +735,6 @@ class BSpline(MasterCurve):
 
     def pieces(self, seg_index, P):
         seg = np.asarray(seg_index, dtype=np.int64)
-        P = _values(P)
         breaks = np.moveaxis(self._breaks[seg], -1, 0)
         return breaks, [self._piece_coefficients(seg, np.full(seg.shape, q), P)
                         for q in range(3)]

@@ -18,13 +18,13 @@ class Enforcement:
     name = ""
 
     def __init__(self, epsilon: float, n_nodes: int, tolerance: float,
-                 gap_resolution: float = 0.0):
+                 gap_resolution: float = 0.0, start: float | None = None):
         self.epsilon0 = float(epsilon)
-        #: ε at the start of every load step (penalty continuation starts lower)
-        self.start = self.epsilon0
+        #: ε at the start of every load step: min(ε, ``start``) (the pair passes E/h)
+        self.start = self.epsilon0 if start is None else min(float(start), self.epsilon0)
         #: the smallest average gap g̃/A that round-off in the coordinates can resolve
         self.gap_resolution = float(gap_resolution)
-        self.epsilon = np.full(n_nodes, self.epsilon0)  # per node (ALM may raise some)
+        self.epsilon = np.full(n_nodes, self.start)  # per node (ALM may raise some)
         self.tolerance = tolerance
         self.multiplier = np.zeros(n_nodes)      # p̂ (zero for penalty)
         self._converged_multiplier = self.multiplier.copy()
@@ -78,20 +78,12 @@ class Penalty(Enforcement):
     """p_j = ε ⟨−g̃_j/A_j⟩₊ : the answer depends on ε (penetration ~ p/ε).
 
     Continuation for a stiff ε: each load step is solved first with ε_start = min(ε,
-    ``start``) (the pair passes E/h), then again with ε raised ×10 per converged solve until
-    it is ε. Only the last solve defines the answer; the others give it a start next to
+    ``start``), then again with ε raised ×10 per converged solve until it is ε. Only the last solve defines the answer; the others give it a start next to
     it. From a touching state a penalty far stiffer than the bodies makes the active set
     jump between Newton iterates (Hertz at a/4 with 100 E/h: 25 iterations, then every cut
     down to the floor, failed; with continuation 3 solves)."""
     name = "penalty"
     growth = 10.0
-
-    def __init__(self, epsilon: float, n_nodes: int, tolerance: float,
-                 gap_resolution: float = 0.0, start: float | None = None):
-        super().__init__(epsilon, n_nodes, tolerance, gap_resolution)
-        if start is not None:
-            self.start = min(float(start), self.epsilon0)
-        self.epsilon[:] = self.start
 
     def augment(self, g: np.ndarray, A: np.ndarray) -> bool:
         if self.epsilon[0] >= self.epsilon0:
@@ -115,11 +107,10 @@ class AugmentedLagrangian(Enforcement):
     name = "alm"
     growth, max_growth = 10.0, 100.0
 
-    def __init__(self, epsilon: float, n_nodes: int, tolerance: float,
-                 gap_resolution: float = 0.0, start: float | None = None):
-        # (``start``: the ALM's ε₀ already is its start, see PairHook)
-        super().__init__(epsilon, n_nodes, tolerance, gap_resolution)
-        self._last = np.full(n_nodes, np.inf)
+    def __init__(self, *args, **kw):
+        # (the pair starts ALM at ε₀ = min(ε, E/h) already: its ``start`` is ε₀)
+        super().__init__(*args, **kw)
+        self._last = np.full(self.epsilon.shape, np.inf)
 
     def augment(self, g: np.ndarray, A: np.ndarray) -> bool:
         c = self.complementarity(g, A)

@@ -113,8 +113,8 @@ def _interval(xa: Vec2, xb: Vec2, nodes):
 
 def _clamp(zc: np.ndarray, zd: np.ndarray):
     """Integration bounds ζ_lo = max(min(ζ_c, ζ_d), 0), ζ_hi = min(max(ζ_c, ζ_d), 1) from
-    the values of the shadow's ends, and which end each bound is: ``mix`` (2 × 2 arrays of
-    0/1) with ζ_lo = mix[0][0] ζ_c + mix[0][1] ζ_d (+ 0 where clamped) and ζ_hi =
+    the values of the shadow's ends, and which end each bound is: ``mix`` (2 × 2 boolean
+    arrays) with ζ_lo = mix[0][0] ζ_c + mix[0][1] ζ_d (+ 0 where clamped) and ζ_hi =
     mix[1][0] ζ_c + mix[1][1] ζ_d (+ 1 where clamped), the form :func:`.ad.substitute`
     takes (the bounds' derivatives are those of the chosen end: no jets of their own)."""
     first = zc <= zd
@@ -123,8 +123,7 @@ def _clamp(zc: np.ndarray, zd: np.ndarray):
     lo_in, hi_in = zmin > 0.0, zmax < 1.0
     lo = np.where(lo_in, zmin, 0.0)
     hi = np.where(hi_in, zmax, 1.0)
-    mix = (((lo_in & first) * 1.0, (lo_in & ~first) * 1.0),
-           ((hi_in & ~first) * 1.0, (hi_in & first) * 1.0))
+    mix = ((lo_in & first, lo_in & ~first), (hi_in & ~first, hi_in & first))
     return lo, hi, mix
 
 
@@ -146,7 +145,7 @@ class _Ends(NamedTuple):
         """The ends in use as entries (pair, at_d: False for the start node c, True for the
         end node d), and per pair the entry each bound is (any entry where the bound is
         clamped) and whether it is that entry (1.0) or clamped (0.0)."""
-        (lc, ld), (hc, hd) = ((c > 0.0 for c in row) for row in self.mix)
+        (lc, ld), (hc, hd) = self.mix
         ic, id_ = np.flatnonzero(lc | hc), np.flatnonzero(ld | hd)
         if ic.shape[0] + id_.shape[0] == 0:
             ic = np.zeros(1, dtype=np.int64)     # no bound moves: one entry to keep shapes
@@ -342,8 +341,8 @@ def _pair_block(X: np.ndarray, pm: np.ndarray, curve: MasterCurve, n_gauss: int,
     the bounds of their integration intervals (:class:`_Ends`).
 
     Returns the integrands of the weighted gaps and, with ``test``, of the Petrov–Galerkin
-    test functionals Ψ_a, Ψ_b (module docstring; else None) (:class:`_Integrand`), the
-    bounds (:class:`_Bounds`), and the values ζ_g, ξ_g (n_gauss, K) and the Gauss weights
+    test functionals Ψ_a, Ψ_b (module docstring; else None) (:class:`_Integrand`, which
+    carries the bounds, :class:`_Bounds`), and the values ζ_g, ξ_g (n_gauss, K) and the Gauss weights
     times the length element (n_gauss, K) for D and M. The nodal areas follow from the
     bounds in closed form (:func:`_areas`). With ``test`` the jets run over [X, v] with 8
     virtual displacements v = (v_a, v_b, v_c, v_d) appended (value 0).
@@ -393,7 +392,7 @@ def _pair_block(X: np.ndarray, pm: np.ndarray, curve: MasterCurve, n_gauss: int,
         dv = ad.sub(ad.add(va, ad.scale(ad.sub(vb, va), zeta)),
                     ad.add(vc, ad.scale(ad.sub(vd, vc), xi)))
         tests = _Integrand(ad.dot(dv, n), J, zeta, w, bounds)
-    return (gaps, tests, bounds, zeta.val, np.broadcast_to(ad.value(xi), zeta.shape),
+    return (gaps, tests, zeta.val, np.broadcast_to(ad.value(xi), zeta.shape),
             J.val * w)
 
 
@@ -489,10 +488,10 @@ def weighted_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarr
     test = curve.hat_test
     if test:
         tgrad = np.empty((2, K, 8))
-    gap_blocks, test_blocks, bounds_blocks = [], [], []
+    gap_blocks, test_blocks = [], []
     for b0 in range(0, K, block):
         b1 = min(b0 + block, K)
-        gaps, tests, bounds, z[:, b0:b1], xv[:, b0:b1], Jw[:, b0:b1] = _pair_block(
+        gaps, tests, z[:, b0:b1], xv[:, b0:b1], Jw[:, b0:b1] = _pair_block(
             X[b0:b1], pm[b0:b1], curve, n_gauss,
             ends if b1 - b0 == K else ends.subset(slice(b0, b1)), test)
         # values and gradients now; the Hessians when the tangent asks (_Deferred)
@@ -502,16 +501,15 @@ def weighted_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarr
             grad[0, :, b0:b1] = q.grad[..., :m]
             if test:
                 tgrad[:, b0:b1] = _nodal(tests).grad[..., m:]
-        val[1, :, b0:b1], grad[1, :, b0:b1] = _areas(X[b0:b1], bounds)
+        val[1, :, b0:b1], grad[1, :, b0:b1] = _areas(X[b0:b1], gaps.bounds)
         gap_blocks.append((b0, b1, gaps))
         test_blocks.append((b0, b1, tests))
-        bounds_blocks.append((b0, b1, bounds))
 
     def area_hessian() -> np.ndarray:
         # the contact terms need only ∇A: the area Hessian is built on demand
         H = np.empty((2 * K, m, m))
-        for b0, b1, bounds in bounds_blocks:
-            area_a, area_b = _area_jets(X[b0:b1], *bounds.jets(m))
+        for b0, b1, gaps in gap_blocks:
+            area_a, area_b = _area_jets(X[b0:b1], *gaps.bounds.jets(m))
             H[b0:b1] = area_a.hess
             H[K + b0:K + b1] = area_b.hess
         return H
