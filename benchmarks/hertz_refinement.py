@@ -75,7 +75,7 @@ def run_size(divisor: int, model: str | None = None) -> dict:
     if not result.converged:
         raise RuntimeError(f"h_contact = a/{divisor}: {result.message}")
     last = result.steps[-1]["contact"][scene.contacts[0].name]
-    d = result.hooks[0].interface()
+    d = result.pairs[0].interface()
     order = np.argsort(d["x"])
     return dict(
         divisor=divisor, h=a / divisor, dofs=result.summary["dofs"],

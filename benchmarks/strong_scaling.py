@@ -101,8 +101,8 @@ def worker_solve(scene_path: str, out_json: str) -> None:
         summary["cpu_seconds_per_rank"] = cpu  # < wall: the rank did not have a core to itself
         summary["host_cpus"] = os.cpu_count()
         summary["load_average_at_end"] = os.getloadavg()
-        summary["surface_nodes"] = {h.pair.name: {"slave": h.slave.n, "master": h.master.n}
-                                    for h in res.hooks}
+        summary["surface_nodes"] = {p.name: {"slave": p.slave.n, "master": p.master.n}
+                                    for p in res.pairs}
         Path(out_json).write_text(json.dumps(summary, indent=1, default=float) + "\n")
 
 

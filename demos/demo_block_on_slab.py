@@ -100,7 +100,7 @@ if __name__ == "__main__":
     # checks at the end of the slide, every contact node slipping
     last = slide.steps[-1]
     c = last["contact"]["interface"]
-    d = slide.hooks[0].interface()
+    d = slide.pairs[0].interface()
     on = d["pressure"] > 0
     all_slip = bool(np.all(d["status"][on] == "slip"))
     cone = float(np.max(np.abs(np.abs(d["t_tangential"][on]) - MU * d["pressure"][on])

@@ -75,7 +75,7 @@ def run(mu: float, smoothing: str, times: list[float] | None, out: Path):
 
     def on_step(rec: dict, state) -> None:
         c = rec["contact"]["rings"]
-        d = state.hooks[0].interface()
+        d = state.pairs[0].interface()
         on = d["pressure"] > 0
         r_contact = float(np.mean(np.hypot(d["x"][on], d["y"][on]))) if on.any() else 10.0
         s, phi = load_parameters(rec["time"])

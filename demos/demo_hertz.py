@@ -29,7 +29,7 @@ p0 = 2.0 * F / (np.pi * a)
 
 def hertz_metrics(result) -> dict:
     """p_max/p₀ − 1, a_fit/a − 1, relative L2 pressure error on [−a, a], force balance."""
-    d = result.hooks[0].interface()
+    d = result.pairs[0].interface()
     x, p = d["x"], d["pressure"]
     order = np.argsort(x)
     x, p = x[order], p[order]

@@ -67,7 +67,7 @@ def run(mu: float, times: list[float] | None, out: Path):
     def on_step(rec: dict, state) -> None:
         c = rec["contact"]["ironing"]
         ft = c.get("tangential_force_on_slave", [0.0, 0.0])
-        d = state.hooks[0].interface()
+        d = state.pairs[0].interface()
         depth, slide = load_parameters(rec["time"])
         rows.append(dict(time=rec["time"], depth=depth, slide=slide,
                          Rx=rec["reactions"]["tool_x"]["x"], Ry=rec["reactions"]["tool_y"]["y"],

@@ -26,8 +26,7 @@ def patch_errors(method: str, cell: str) -> tuple[float, float, int, int]:
     result = solve(scene, log=lambda s: None)
     assert result.converged, result.message
     sigma_yy = result.stress.values()[:, 1, 1]
-    hook = result.hooks[0]
-    p = hook.interface()["pressure"]
+    p = result.pairs[0].interface()["pressure"]
     active = p > 0
     step = result.steps[-1]
     return (float(np.abs(sigma_yy + 1).max()), float(np.abs(p[active] - 1).max()),

@@ -30,21 +30,12 @@ def model_to_mesh(model, comm: MPI.Comm, rank: int = 0):
     return gmshio.model_to_mesh(model, comm, rank, gdim=2)
 
 
-def cpp_mesh(msh: Mesh):
-    # Debian's patched Mesh wraps the C++ object instead of subclassing it.
-    return getattr(msh, "_mesh", msh)
-
-
 def vector_space(msh: Mesh):
     return fem.VectorFunctionSpace(msh, ("Lagrange", 1))
 
 
 def tensor_dg0_space(msh: Mesh):
     return fem.TensorFunctionSpace(msh, ("DG", 0))
-
-
-def scalar_dg0_space(msh: Mesh):
-    return fem.FunctionSpace(msh, ("DG", 0))
 
 
 def constant(msh: Mesh, value):
@@ -101,6 +92,60 @@ def num_owned_cells(msh: Mesh) -> int:
     return msh.topology.index_map(msh.topology.dim).size_local
 
 
+def num_cells(msh: Mesh) -> int:
+    """Owned and ghost cells on this rank."""
+    im = msh.topology.index_map(msh.topology.dim)
+    return im.size_local + im.num_ghosts
+
+
+def num_owned_facets(msh: Mesh) -> int:
+    return msh.topology.index_map(msh.topology.dim - 1).size_local
+
+
+def num_vertices(msh: Mesh, ghosts: bool = True) -> int:
+    im = msh.topology.index_map(0)
+    return im.size_local + (im.num_ghosts if ghosts else 0)
+
+
+def num_cells_global(msh: Mesh) -> int:
+    return msh.topology.index_map(msh.topology.dim).size_global
+
+
+def node_coordinates(msh: Mesh) -> np.ndarray:
+    """(n_nodes, 2) geometry node coordinates (a view)."""
+    return msh.geometry.x[:, :2]
+
+
+def cell_nodes(msh: Mesh) -> np.ndarray:
+    """(n_cells, k) geometry nodes of each cell (linear cells of one type)."""
+    return msh.geometry.dofmap.array.reshape(num_cells(msh), -1)
+
+
+def input_node_numbers(msh: Mesh) -> np.ndarray:
+    """The mesh file's (gmsh's) number of every geometry node on this rank."""
+    return np.asarray(msh.geometry.input_global_indices)
+
+
+def cell_dofs(V) -> np.ndarray:
+    """(n_cells, k) dof blocks (nodes) of each cell, in the cell's reference order."""
+    return V.dofmap.list.array.reshape(num_cells(V.mesh), -1)
+
+
+def dof_coordinates(V) -> np.ndarray:
+    """(n_blocks, 2) coordinates of the dof blocks (owned, then ghosts)."""
+    return V.tabulate_dof_coordinates()[:, :2]
+
+
+def dof_count(V) -> int:
+    """Global number of (unrolled) dofs."""
+    return V.dofmap.index_map.size_global * V.dofmap.index_map_bs
+
+
+def owned_dof_count(V) -> int:
+    """Unrolled dofs this rank owns (they come first in the local numbering)."""
+    return V.dofmap.index_map.size_local * V.dofmap.index_map_bs
+
+
 def vertex_to_geometry_node(msh: Mesh) -> np.ndarray:
     """Map vertex index → geometry node index (they differ in DOLFINx; linear cells)."""
     tdim = msh.topology.dim
@@ -113,11 +158,10 @@ def vertex_to_geometry_node(msh: Mesh) -> np.ndarray:
     return out
 
 
-def dof_owner_range(V) -> tuple[int, int]:
+def local_to_global_blocks(V) -> np.ndarray:
+    """Global block (node) number of every local block, owned then ghosts."""
     im = V.dofmap.index_map
-    bs = V.dofmap.index_map_bs
-    r = im.local_range
-    return r[0] * bs, r[1] * bs
+    return im.local_to_global(np.arange(im.size_local + im.num_ghosts, dtype=np.int32))
 
 
 def local_to_global_dofs(V) -> np.ndarray:
@@ -233,19 +277,36 @@ def measures(msh: Mesh, cell_tags, facet_tags, degree: int):
     return dx, ds
 
 
-def sparsity_pattern(a_form):
-    """The bulk form's sparsity pattern, still open for extra (contact) couplings."""
-    return fem.create_sparsity_pattern(a_form)
+def matrix_with_couplings(a_form, V, blocks: list[np.ndarray]) -> PETSc.Mat:
+    """The Jacobian matrix: the form's sparsity plus the extra couplings ``blocks`` (each:
+    global node-block numbers of V that couple all-to-all), written once with zeros so
+    PETSc keeps the slots. Couplings beyond the prediction (large sliding) still go in, by
+    dynamic allocation.
 
-
-def matrix_from_sparsity(a_form, pattern) -> PETSc.Mat:
-    """Insert extra couplings first with ``pattern.insert(local_blocks, local_blocks)``.
-
-    The bulk form is assembled once (flush only) so that its slots are written: a final
+    The bulk form is assembled once (flush only) so that its slots are written too: a final
     assembly squeezes every preallocated slot not written yet, and the first Jacobian would
     then reallocate the whole bulk pattern entry by entry (Hertz, 23k dofs: 23 s instead
     of 0.9 s)."""
+    im = V.dofmap.index_map
+    l2g = local_to_global_blocks(V)
+    order = np.argsort(l2g)
+    pattern = fem.create_sparsity_pattern(a_form)
+    known = []
+    for blk in blocks:
+        pos = np.searchsorted(l2g, blk, sorter=order)
+        pos = np.minimum(pos, len(order) - 1)
+        local = order[pos][l2g[order[pos]] == blk].astype(np.int32)
+        if len(local):
+            pattern.insert(local, local)
+            known.append(local)
     pattern.assemble()
     A = cpp.la.petsc.create_matrix(a_form.mesh.comm, pattern)
     fpetsc.assemble_matrix(A, a_form)
+    bs = V.dofmap.index_map_bs
+    for local in known:
+        g = (l2g[local][:, None] * bs + np.arange(bs)).ravel().astype(PETSc.IntType)
+        A.setValues(g, g, np.zeros((len(g), len(g))), addv=PETSc.InsertMode.ADD)
+    A.assemble()
+    A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
+    del im
     return A

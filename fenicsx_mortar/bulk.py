@@ -56,7 +56,7 @@ class Bulk:
         """Σ of the unconstrained residual over each support's dofs: the force the support
         exerts on the body."""
         comm = self.domain.mesh.comm
-        n_owned = self.V.dofmap.index_map.size_local * self.V.dofmap.index_map_bs
+        n_owned = dx.owned_dof_count(self.V)
         arr = b_unconstrained.array_r
         out = {}
         for s in self.supports:
@@ -149,8 +149,8 @@ def _supports(scene: Scene, dom: Domain, V):
 
 
 def _point_vertices(dom: Domain, point, body: str, scene: Scene) -> np.ndarray:
-    x = dom.mesh.geometry.x
-    scale = float(np.ptp(x[:, :2], axis=0).max()) if len(x) else 1.0
+    x = dx.node_coordinates(dom.mesh)
+    scale = float(np.ptp(x, axis=0).max()) if len(x) else 1.0
     scale = dom.mesh.comm.allreduce(scale, op=MPI.MAX)
     tol = 1e-8 * scale
     p = np.array(point, dtype=float)

@@ -2,7 +2,7 @@
 
 The displacement is stored per ORIGINAL mesh node (gmsh input numbering), so a restart may
 use another number of MPI ranks; each contact pair adds its history (ALM multipliers, NTS
-segment choices) through ``state_dict``/``load_state_dict``. Written atomically.
+segment choices, friction reference points) through ``state_dict``/``load_state_dict``. Written atomically.
 """
 from __future__ import annotations
 
@@ -23,17 +23,16 @@ FILE = "checkpoint.npz"
 def _owned_nodes(V):
     """(input node index, local dofs (n, 2)) of the vertices this rank owns."""
     msh = V.mesh
-    n_owned = msh.topology.index_map(0).size_local
-    verts = np.arange(n_owned, dtype=np.int32)
+    verts = np.arange(dx.num_vertices(msh, ghosts=False), dtype=np.int32)
     geom = dx.vertex_to_geometry_node(msh)[verts]
-    return np.asarray(msh.geometry.input_global_indices)[geom], dx.vertex_dofs_all(V, verts)
+    return dx.input_node_numbers(msh)[geom], dx.vertex_dofs_all(V, verts)
 
 
-def save(out: Path, comm: MPI.Comm, u, hooks, t: float, k: int, steps: list[dict]) -> None:
+def save(out: Path, comm: MPI.Comm, u, pairs, t: float, k: int, steps: list[dict]) -> None:
     idx, dofs = _owned_nodes(u.function_space)
     parts = comm.gather((idx, u.x.array[dofs]), root=0)
     # state_dict is collective (it gathers per-node history from the owning ranks)
-    states = [h.state_dict() for h in hooks]
+    states = [p.state_dict() for p in pairs]
     if comm.rank != 0:
         return
     idx = np.concatenate([p[0] for p in parts])
@@ -43,7 +42,7 @@ def save(out: Path, comm: MPI.Comm, u, hooks, t: float, k: int, steps: list[dict
               "steps": np.array(json.dumps(steps, default=float))}
     for i, state in enumerate(states):
         for key, value in state.items():
-            arrays[f"hook{i}_{key}"] = value
+            arrays[f"pair{i}_{key}"] = value
     buf = io.BytesIO()
     np.savez(buf, **arrays)
     fd, tmp = tempfile.mkstemp(dir=out, prefix=f".{FILE}.")
@@ -52,8 +51,8 @@ def save(out: Path, comm: MPI.Comm, u, hooks, t: float, k: int, steps: list[dict
     os.replace(tmp, out / FILE)
 
 
-def load(out: Path, comm: MPI.Comm, u, hooks) -> tuple[float, int, list[dict]]:
-    """Set ``u`` and the hooks' history from the checkpoint; return (time, step, records)."""
+def load(out: Path, comm: MPI.Comm, u, pairs) -> tuple[float, int, list[dict]]:
+    """Set ``u`` and the pairs' history from the checkpoint; return (time, step, records)."""
     data = None
     if comm.rank == 0:
         with np.load(out / FILE) as f:
@@ -61,14 +60,13 @@ def load(out: Path, comm: MPI.Comm, u, hooks) -> tuple[float, int, list[dict]]:
     data = comm.bcast(data, root=0)
     V = u.function_space
     msh = V.mesh
-    n_all = msh.topology.index_map(0).size_local + msh.topology.index_map(0).num_ghosts
-    verts = np.arange(n_all, dtype=np.int32)
-    idx = np.asarray(msh.geometry.input_global_indices)[dx.vertex_to_geometry_node(msh)[verts]]
+    verts = np.arange(dx.num_vertices(msh), dtype=np.int32)
+    idx = dx.input_node_numbers(msh)[dx.vertex_to_geometry_node(msh)[verts]]
     pos = np.searchsorted(data["node"], idx)
     if np.any(pos >= len(data["node"])) or np.any(data["node"][np.minimum(pos, len(data["node"]) - 1)] != idx):
         raise ValueError(f"{out / FILE} does not match this mesh")
     u.x.array[dx.vertex_dofs_all(V, verts)] = data["u"][pos]
-    for i, h in enumerate(hooks):
-        prefix = f"hook{i}_"
-        h.load_state_dict({k[len(prefix):]: v for k, v in data.items() if k.startswith(prefix)})
+    for i, pair in enumerate(pairs):
+        prefix = f"pair{i}_"
+        pair.load_state_dict({k[len(prefix):]: v for k, v in data.items() if k.startswith(prefix)})
     return float(data["time"]), int(data["step"]), json.loads(str(data["steps"]))

@@ -43,28 +43,27 @@ class Snapshot:
 def snapshot(result, time: float | None = None, pair: int = 0) -> Snapshot:
     """The current state of a :class:`~fenicsx_mortar.run.Result` (or of the state handed to
     ``solve(..., on_step=...)``)."""
+    from . import _dolfinx as dx
     msh = result.domain.mesh
     if msh.comm.size > 1:
         raise NotImplementedError("pictures: serial runs only")
     V = result.bulk.V
-    tdim = msh.topology.dim
-    n_cells = msh.topology.index_map(tdim).size_local + msh.topology.index_map(tdim).num_ghosts
-    dofs = V.dofmap.list.array.reshape(n_cells, -1)  # node blocks per cell, reference order
+    dofs = dx.cell_dofs(V)  # node blocks per cell, reference order
     if dofs.shape[1] == 4:  # DOLFINx quadrilaterals are tensor-ordered: 0 1 / 2 3
         dofs = dofs[:, [0, 1, 3, 2]]
-    X = V.tabulate_dof_coordinates()[:, :2]
+    X = dx.dof_coordinates(V)
     points = X + result.u.x.array.reshape(-1, 2)[: len(X)]
-    body = np.zeros(n_cells, dtype=np.int32)
+    body = np.zeros(dofs.shape[0], dtype=np.int32)
     tags = result.domain.cell_tags
     body[tags.indices] = tags.values
-    hook = result.hooks[pair]
-    d = hook.interface()
+    contact = result.pairs[pair]
+    d = contact.interface()
     ns = len(d["x"])
     status = np.array([STATUS_CODES[str(s)] for s in d.get("status", ["inactive"] * ns)])
     return Snapshot(
         time=float(result.steps[-1]["time"] if time is None else time), points=points,
         cells=dofs.astype(np.int64), body=body, sigma=result.stress.values().copy(),
-        surface=np.column_stack([d["x"], d["y"]]), segments=np.asarray(hook.slave.seg),
+        surface=np.column_stack([d["x"], d["y"]]), segments=np.asarray(contact.slave.seg),
         pressure=np.asarray(d["pressure"], dtype=float).copy(),
         t_tangential=np.asarray(d.get("t_tangential", np.zeros(ns)), dtype=float).copy(),
         status=status)

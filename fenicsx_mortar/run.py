@@ -1,4 +1,10 @@
-"""``solve(scene)``: mesh → bulk forms → contact pairs (only if declared) → load steps → outputs."""
+"""``solve(scene)``: mesh → bulk forms → contact pairs (only if declared) → load steps → outputs.
+
+The scene runner is a client of the library API: it builds the UFL forms of the scene's
+bodies and loads (:mod:`.bulk`), one :class:`~.contact.pair.ContactPair` per declared pair
+from the mesh's named groups, and drives a :class:`~.problem.ContactProblem` through the
+load steps with step cutting (:func:`.solver.run_load_steps`), writing the outputs.
+"""
 from __future__ import annotations
 
 import dataclasses
@@ -16,10 +22,11 @@ from mpi4py import MPI
 
 from . import _dolfinx as dx
 from . import checkpoint, output
+from .contact import output as interface_output
 from .bulk import Bulk, StressOutput, build_bulk
 from .meshing import Domain, build_domain
 from .scene import Scene, SceneError
-from .solver import NewtonSolver, StepResult, Timings, run_load_steps
+from .solver import StepResult, Timings, run_load_steps
 
 
 @dataclass
@@ -33,7 +40,7 @@ class Result:
     domain: Domain
     bulk: Bulk
     stress: StressOutput
-    hooks: list = field(default_factory=list)
+    pairs: list = field(default_factory=list)
     summary: dict = field(default_factory=dict)
 
     @property
@@ -68,19 +75,19 @@ def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM
     with timings("jit"):
         bulk = build_bulk(scene, dom)
         stress = StressOutput(bulk, scene)
-        hooks, matrix = [], None
-        if scene.contacts:
-            from .contact.pair import build_contact  # only a scene with contact loads it
-            hooks, matrix = build_contact(scene, dom, bulk, timings)
+    pairs = scene_pairs(scene, dom, bulk.V) if scene.contacts else []
     t0, k0, steps = 0.0, 0, []
     if restart:
-        t0, k0, steps = checkpoint.load(Path(out), comm, bulk.u, hooks)
+        t0, k0, steps = checkpoint.load(Path(out), comm, bulk.u, pairs)
         log(f"  restart from step {k0} at pseudo-time {t0:.6g}")
     stop = _StopRequest(comm)
     with timings("jit"):
-        solver = NewtonSolver(bulk, scene.solver, hooks, timings, matrix, stop.requested)
-    V = bulk.V
-    ndofs = V.dofmap.index_map.size_global * V.dofmap.index_map_bs
+        from .problem import ContactProblem
+        problem = ContactProblem(bulk.residual, bulk.u, bulk.bcs, pairs, bulk.jacobian,
+                                 settings=scene.solver, timings=timings,
+                                 should_stop=stop.requested)
+    solver = problem.solver
+    ndofs = dx.dof_count(bulk.V)
     log(f"  dofs: {ndofs}, ranks: {comm.size}")
 
     summary = {"title": scene.title, "converged": False, "message": "running",
@@ -106,28 +113,28 @@ def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM
         record = {"step": k, "time": t, "load_factor": t, "newton_iterations": res.iterations,
                   "augmentations": res.augmentations, "cuts": cuts,
                   "residuals": res.residuals, "reactions": bulk.reactions(b)}
-        for h in hooks:
-            record.setdefault("contact", {}).update(h.record())
+        for p in pairs:
+            record.setdefault("contact", {}).update(p.record())
         steps.append(record)
         with timings("output"):
             stress.update()
             if writer is not None:
                 writer.write([bulk.u, stress.sigma], t)
             if out is not None:
-                checkpoint.save(out, comm, bulk.u, hooks, t, k, steps)
+                checkpoint.save(out, comm, bulk.u, pairs, t, k, steps)
                 if rank0:
                     output.write_summary(out, summary)
-                    for h in hooks:
-                        h.write_interface(out, k)
+                    for p in pairs:
+                        interface_output.write_interface(p, out, k)
         log(_step_line(k, t, res, cuts))
         if on_step is not None:
             on_step(record, Result(scene, False, "running", steps, dict(timings), dom, bulk,
-                                   stress, hooks, summary))
+                                   stress, pairs, summary))
 
     progress = _progress_printer() if rank0 else (lambda s: None)
     with stop:
         completed, message = run_load_steps(
-            solver, scene.steps, record_step, progress,
+            solver, scene.steps, bulk.set_time, record_step, progress,
             max(c.enforcement.max_augmentations for c in scene.contacts) if scene.contacts else 0,
             t_start=t0, k_start=k0, should_stop=stop.requested)
     timings["total"] = time.perf_counter() - t_start
@@ -140,12 +147,33 @@ def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM
             if scene.output.plots:
                 output.plot_reactions(out, steps)
                 output.plot_convergence(out, steps)
-                for h in hooks:
-                    h.plot(out, steps)
+                for p in pairs:
+                    interface_output.plot_pressure(p, out)
     summary["timings"] = dict(timings)
     log(("done: " if completed else "FAILED: ") + message)
-    return Result(scene, completed, message, steps, dict(timings), dom, bulk, stress, hooks,
+    return Result(scene, completed, message, steps, dict(timings), dom, bulk, stress, pairs,
                   summary)
+
+
+def scene_pairs(scene: Scene, dom: Domain, V) -> list:
+    """One :class:`~.contact.pair.ContactPair` per contact of the scene, from the mesh's named
+    groups (a scene without contact never imports the contact package)."""
+    from .contact.pair import ContactPair
+    moduli = {dom.cell_groups[b.group]: b.material.E for b in scene.bodies}
+    pairs = []
+    for i, c in enumerate(scene.contacts):
+        def tags(groups):
+            return [dom.facet_groups[g] for g in ([groups] if isinstance(groups, str) else groups)]
+        try:
+            pairs.append(ContactPair(
+                V, dom.facet_tags, tags(c.slave), tags(c.master), name=c.name,
+                method=c.method, smoothing=c.smoothing, enforcement=c.enforcement.type,
+                epsilon=c.enforcement.epsilon, tolerance=c.enforcement.tolerance,
+                friction=c.friction.law, mu=c.friction.mu, E=moduli,
+                cell_tags=dom.cell_tags, n_gauss=c.n_gauss, search_radius=c.search_radius))
+        except ValueError as e:
+            raise SceneError(f"contacts[{i}]: {e}") from None
+    return pairs
 
 
 class _StopRequest:

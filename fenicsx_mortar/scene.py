@@ -134,8 +134,9 @@ class Traction:
 
 @dataclass
 class Enforcement:
-    """Penalty or augmented Lagrangian (Uzawa) enforcement. DESIGN.md §5."""
-    type: Literal["penalty", "alm"] = "alm"
+    """Normal-contact enforcement: a registered name (``ENFORCEMENTS``: penalty, alm, …).
+    DESIGN.md §5."""
+    type: str = "alm"
     epsilon: float | None = None  # default E/h (slave body); ALM starts at min(epsilon, E/h)
     tolerance: float = 1e-10      # ALM: KKT residual (relative to the pressure scale)
     max_augmentations: int = 30
@@ -143,21 +144,23 @@ class Enforcement:
 
 @dataclass
 class Friction:
-    law: Literal["none", "coulomb"] = "none"
+    """A registered friction law (``FRICTION_LAWS``: none, coulomb, …) and its coefficient."""
+    law: str = "none"
     mu: float = 0.0
 
 
 @dataclass
-class ContactPair:
-    """A slave (non-mortar) and a master (mortar) surface that may touch."""
+class Contact:
+    """A slave (non-mortar) and a master (mortar) surface that may touch; ``method`` and
+    ``smoothing`` are registered names (``METHODS``, ``SMOOTHINGS`` in
+    :mod:`fenicsx_mortar.contact.registry`)."""
     name: str
     slave: str | list[str]
     master: str | list[str]
-    method: Literal["mortar", "nts"] = "mortar"
+    method: str = "mortar"
     enforcement: Enforcement = field(default_factory=Enforcement)
     friction: Friction = field(default_factory=Friction)
-    smoothing: Literal["none", "averaged-simple", "averaged-weighted", "averaged-tangent",
-                       "hermite", "bspline"] = "none"
+    smoothing: str = "none"
     search_radius: float | None = None  # default: two slave element sizes
     n_gauss: int | None = None  # default: the master curve's (2 polyline, 4 smoothed)
 
@@ -212,7 +215,7 @@ class Scene:
     pressures: list[Pressure] = field(default_factory=list)
     tractions: list[Traction] = field(default_factory=list)
     curves: dict[str, LoadCurve] = field(default_factory=dict)
-    contacts: list[ContactPair] = field(default_factory=list)
+    contacts: list[Contact] = field(default_factory=list)
     steps: Steps = field(default_factory=Steps)
     solver: SolverSettings = field(default_factory=SolverSettings)
     output: OutputSettings = field(default_factory=OutputSettings)
@@ -302,8 +305,16 @@ class Scene:
             if len(t.value) != 2:
                 raise SceneError(f"tractions[{i}].value must be [tx, ty]")
         _unique([c.name for c in self.contacts], "contacts[].name")
+        from .contact.registry import ENFORCEMENTS, FRICTION_LAWS, METHODS, SMOOTHINGS
         for i, c in enumerate(self.contacts):
             key = f"contacts[{i}]"
+            for name, value, registry in (("method", c.method, METHODS),
+                                          ("smoothing", c.smoothing, SMOOTHINGS),
+                                          ("enforcement.type", c.enforcement.type, ENFORCEMENTS),
+                                          ("friction.law", c.friction.law, FRICTION_LAWS)):
+                if value not in registry:
+                    raise SceneError(f"{key}.{name} = {value!r}: must be one of "
+                                     f"{', '.join(map(repr, registry.names()))}")
             if set(_as_list(c.slave)) & set(_as_list(c.master)):
                 raise SceneError(f"{key}: slave and master surfaces must differ "
                                  f"(both name {sorted(set(_as_list(c.slave)) & set(_as_list(c.master)))})")

@@ -3,8 +3,11 @@
 A Newton solve counts as converged only when the residual norm is below ``atol`` AND below
 ``rtol`` times the reference residual — the largest first residual of a load step seen so
 far, so that a cut (small) increment does not make the relative test unreachable — (or that
-reference was already below ``atol``) AND every hook (contact pair) accepts its own KKT residual: a huge first residual
-makes a relative decrease alone meaningless (DESIGN.md §5).
+reference was already below ``atol``): a huge first residual makes a relative decrease
+alone meaningless (DESIGN.md §5). A load step is converged when, after such a solve, no
+hook asks for another one (``augment``: the ALM's KKT residual is below its tolerance,
+the penalty's ε has reached its target). The active sets are watched for cycles
+(:class:`ActiveSetMonitor`).
 """
 from __future__ import annotations
 
@@ -17,7 +20,6 @@ import numpy as np
 from petsc4py import PETSc
 
 from . import _dolfinx as dx
-from .bulk import Bulk
 from .scene import SolverSettings, Steps
 
 
@@ -27,16 +29,46 @@ class Hook(Protocol):
     def update(self, u) -> None: ...              # new iterate: kinematics, active set
     def add_residual(self, b, bc_dofs) -> None: ...
     def add_jacobian(self, A, bc_dofs) -> None: ...
-    def newton_ok(self) -> bool: ...              # e.g. active set unchanged since last update
-    def begin_solve(self) -> None: ...            # a Newton solve starts
-    def cycling(self, fnorm: float) -> str | None: ...  # a cycling active set, described
-    def augment(self) -> bool: ...                # ALM update; True → solve again
+    def decision(self) -> np.ndarray | None: ...  # per-node active / stick-slip decision
+    def augment(self) -> bool: ...                # between Newton solves; True → solve again
     def begin_step(self) -> None: ...
     def accept_step(self) -> None: ...
     def reject_step(self) -> None: ...
     def record(self) -> dict: ...
-    def couplings(self) -> np.ndarray: ...        # (k, 2) global dof pairs for the sparsity
+    name: str
     path_dependent: bool                          # history (friction): the path matters
+
+
+class ActiveSetMonitor:
+    """Watches the hooks' per-node decisions over one Newton solve: a decision vector that
+    reappears after a different one (period ≥ 2) while the residual has not even halved
+    since its first appearance means Newton is going round in circles (a repeat with
+    progress, e.g. an edge node opening and closing again on the way to the answer, is no
+    cycle)."""
+
+    def __init__(self, hooks):
+        self.hooks = hooks
+        self._seen: list[list] = [[] for _ in hooks]
+
+    def begin_solve(self) -> None:
+        self._seen = [[] for _ in self.hooks]
+
+    def cycling(self, fnorm: float) -> str | None:
+        """A description of the first cycle found, or None."""
+        for h, seen in zip(self.hooks, self._seen):
+            d = h.decision()
+            if d is None:
+                continue
+            seen.append((d, fnorm))
+            if len(seen) >= 3 and not np.array_equal(d, seen[-2][0]):
+                for k, (old, r_old) in enumerate(seen[:-2]):
+                    if np.array_equal(d, old) and fnorm >= 0.5 * r_old:
+                        flip = np.flatnonzero(d != seen[-2][0])
+                        return (f"contact {h.name}: the active/stick-slip set of iteration "
+                                f"{len(seen) - 1} repeats iteration {k} (period "
+                                f"{len(seen) - 1 - k}) with the residual at {fnorm:.3e} "
+                                f"(was {r_old:.3e}); slave nodes {flip[:10].tolist()} flip")
+        return None
 
 
 class Timings(dict):
@@ -67,35 +99,44 @@ _REASONS = {v: k for k, v in vars(PETSc.SNES.ConvergedReason).items() if isinsta
 
 
 class NewtonSolver:
-    """SNES (newtonls + line search, LU by default) on bulk forms plus hooks."""
+    """PETSc SNES (newtonls + line search, LU by default) on a residual and Jacobian form
+    (compiled) of ``u``, with Dirichlet conditions ``bcs`` and hooks (contact pairs) that
+    add their terms at every iterate. ``matrix``: a Jacobian matrix with the hooks'
+    couplings preallocated (default: the form's own sparsity)."""
 
-    def __init__(self, bulk: Bulk, settings: SolverSettings, hooks: list[Hook],
+    def __init__(self, residual, jacobian, u, bcs, settings: SolverSettings, hooks: list[Hook],
                  timings: Timings, matrix=None,
-                 should_stop: Callable[[], str | None] = lambda: None):
+                 should_stop: Callable[[], str | None] = lambda: None,
+                 prefix: str | None = None):
         self.should_stop = should_stop
-        self.bulk, self.settings, self.hooks, self.timings = bulk, settings, hooks, timings
-        self.u = bulk.u
-        self.b = dx.create_vector(bulk.residual)
-        self.A = matrix if matrix is not None else dx.create_matrix(bulk.jacobian)
+        self.residual_form, self.jacobian_form, self.bcs = residual, jacobian, bcs
+        self.settings, self.hooks, self.timings = settings, hooks, timings
+        self.u = u
+        self.b = dx.create_vector(residual)
+        self.A = matrix if matrix is not None else dx.create_matrix(jacobian)
         self.x = dx.function_vector(self.u).copy()
-        self.bc_dofs = dx.bc_dofs(bulk.bcs)
+        self.bc_dofs = dx.bc_dofs(bcs)
+        self.monitor = ActiveSetMonitor(hooks)
         self._callback_time = 0.0
         self.history: list[float] = []
         self._r0 = None
         self._r_ref = 0.0
         self._cycle = None
-        comm = bulk.domain.mesh.comm
+        comm = u.function_space.mesh.comm
         self.snes = PETSc.SNES().create(comm)
-        self._prefix = prefix = f"fm{id(self)}_"
+        self._prefix = prefix = prefix or f"fm{id(self)}_"
         self.snes.setOptionsPrefix(prefix)
+        user = {k.lstrip("-"): v for k, v in settings.petsc.items()}
+        #: the line search in use (a full-Newton retry switches to "basic" and back to it)
+        self.line_search = str(user.get("snes_linesearch_type", settings.line_search))
+        options = {"snes_type": "newtonls", "snes_linesearch_type": settings.line_search,
+                   "snes_max_it": settings.max_iterations, "snes_max_funcs": 100000}
+        options.update(_linear_solver_options(settings.linear_solver))
+        options.update({k: "" if v is True else ("false" if v is False else v)
+                        for k, v in user.items()})
         opts = PETSc.Options()
-        defaults = {"snes_type": "newtonls", "snes_linesearch_type": settings.line_search,
-                    "snes_max_it": settings.max_iterations, "snes_max_funcs": 100000}
-        defaults.update(_linear_solver_options(settings.linear_solver))
-        for k, v in defaults.items():
+        for k, v in options.items():
             opts[prefix + k] = v
-        for k, v in settings.petsc.items():
-            opts[prefix + k.lstrip("-")] = "" if v is True else ("false" if v is False else v)
         self.snes.setFunction(self._residual, self.b)
         self.snes.setJacobian(self._jacobian, self.A)
         self.snes.setConvergenceTest(self._converged)
@@ -103,9 +144,8 @@ class NewtonSolver:
         self.snes.getKSP().setFromOptions()
         # PETSc's options database is global and holds at most 512 entries: drop ours once
         # applied, or a process that builds many solvers (a study, a test session) runs out
-        for k in list(opts.getAll()):
-            if k.startswith(prefix):
-                opts.delValue(k)
+        for k in options:
+            opts.delValue(prefix + k)
 
     # -- SNES callbacks -------------------------------------------------------------
     def _set_iterate(self, x) -> None:
@@ -128,7 +168,7 @@ class NewtonSolver:
         t0 = time.perf_counter()
         self._set_iterate(x)
         self._timed_bulk(lambda: dx.assemble_residual(
-            b, self.bulk.residual, self.bulk.jacobian, self.bulk.bcs, x,
+            b, self.residual_form, self.jacobian_form, self.bcs, x,
             extra=self._add_hook_residuals if self.hooks else None))
         self._callback_time += time.perf_counter() - t0
 
@@ -140,7 +180,7 @@ class NewtonSolver:
     def _jacobian(self, snes, x, A, P) -> None:
         t0 = time.perf_counter()
         self._timed_bulk(lambda: dx.assemble_jacobian(
-            A, self.bulk.jacobian, self.bulk.bcs,
+            A, self.jacobian_form, self.bcs,
             extra=self._add_hook_jacobians if self.hooks else None))
         self._callback_time += time.perf_counter() - t0
 
@@ -162,11 +202,11 @@ class NewtonSolver:
         if self.should_stop():
             return PETSc.SNES.ConvergedReason.DIVERGED_INNER  # no DIVERGED_USER in petsc4py 3.18
         small = fnorm <= s.atol and (fnorm <= s.rtol * self._r0 or self._r0 <= s.atol)
-        if small and all(h.newton_ok() for h in self.hooks):
+        if small:
             return PETSc.SNES.ConvergedReason.CONVERGED_FNORM_ABS
         # cycling guard: an active set (or stick/slip state) that comes back is a loop Newton
         # will not leave; stop now and let the step be cut, saying which nodes flip
-        self._cycle = next((m for m in (h.cycling(fnorm) for h in self.hooks) if m), None)
+        self._cycle = self.monitor.cycling(fnorm)
         if self._cycle:
             return PETSc.SNES.ConvergedReason.DIVERGED_INNER
         if it >= s.max_iterations:
@@ -181,8 +221,7 @@ class NewtonSolver:
         for aug in range(max_augmentations + 1):
             self.history = []
             self._cycle = None
-            for h in self.hooks:
-                h.begin_solve()
+            self.monitor.begin_solve()
             self._callback_time = 0.0
             t0 = time.perf_counter()
             self.snes.solve(None, self.x)
@@ -225,7 +264,7 @@ class NewtonSolver:
     def unconstrained_residual(self) -> PETSc.Vec:
         """F(u) without Dirichlet modification (contact included): reactions live here."""
         b = self.b.duplicate()
-        dx.assemble_unconstrained_residual(b, self.bulk.residual)
+        dx.assemble_unconstrained_residual(b, self.residual_form)
         for h in self.hooks:
             h.add_residual(b, np.zeros(0, dtype=np.int32))
         return b
@@ -237,18 +276,20 @@ def _linear_solver_options(name: str) -> dict:
     return {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": name}
 
 
-def run_load_steps(solver: NewtonSolver, steps: Steps, on_step: Callable[[int, float, StepResult, int], None],
+def run_load_steps(solver: NewtonSolver, steps: Steps, set_time: Callable[[float], None],
+                   on_step: Callable[[int, float, StepResult, int], None],
                    on_progress: Callable[[str], None] = lambda s: None,
                    max_augmentations: int = 50, t_start: float = 0.0, k_start: int = 0,
                    should_stop: Callable[[], str | None] = lambda: None) -> tuple[bool, str]:
-    """Advance pseudo-time through ``steps`` from ``t_start``; halve a failed increment, at
+    """Advance pseudo-time through ``steps`` from ``t_start`` (``set_time(t)`` scales the
+    loads and prescribed displacements to pseudo-time t); halve a failed increment, at
     most ``max_cuts`` times in a row and not below the floor, and double it again after each
     converged step (never past the next target). A failed increment is tried once more with
     full Newton steps (no line search) before it is cut; with path-dependent hooks
     (friction) only when it cannot be cut any more. Returns (completed, message)."""
     t = t_start
     k = k_start
-    line_search = solver.settings.petsc.get("snes_linesearch_type", solver.settings.line_search)
+    line_search = solver.line_search
     fallback = line_search != "basic"
     history = any(h.path_dependent for h in solver.hooks)
     for target in steps.targets():
@@ -259,13 +300,13 @@ def run_load_steps(solver: NewtonSolver, steps: Steps, on_step: Callable[[int, f
         while t < target - 1e-14 * max(1.0, abs(target)):
             sig = should_stop()
             if sig:
-                solver.bulk.set_time(t)
+                set_time(t)
                 return False, (f"interrupted by {sig} at pseudo-time {t:.6g} (last converged "
                                f"step {k}); continue with: fenicsx-mortar run --restart DIR")
             t_try = min(t + dt, target)
             saved = solver.save_state()
             on_progress(f"step {k + 1} t={t_try:.6g} ...")
-            res = _attempt(solver, t_try, max_augmentations)
+            res = _attempt(solver, set_time, t_try, max_augmentations)
             # would a failure of this increment end the run?
             below_floor, out_of_cuts = dt * 0.5 < steps.floor(), cuts >= steps.max_cuts
             retry = fallback and (below_floor or out_of_cuts or not history)
@@ -277,7 +318,7 @@ def run_load_steps(solver: NewtonSolver, steps: Steps, on_step: Callable[[int, f
                 _undo(solver, saved)
                 on_progress(f"retrying with full Newton steps: {res.reason}")
                 solver.set_line_search("basic")
-                full = _attempt(solver, t_try, max_augmentations)
+                full = _attempt(solver, set_time, t_try, max_augmentations)
                 solver.set_line_search(line_search)
                 if not full.converged:
                     full.reason = f"{res.reason}; with full Newton steps: {full.reason}"
@@ -292,7 +333,7 @@ def run_load_steps(solver: NewtonSolver, steps: Steps, on_step: Callable[[int, f
                 cuts = 0
                 continue
             _undo(solver, saved)
-            solver.bulk.set_time(t)
+            set_time(t)
             if should_stop():
                 continue  # reported at the top of the loop
             cuts += 1
@@ -316,8 +357,9 @@ def _undo(solver: NewtonSolver, saved: PETSc.Vec) -> None:
     solver.restore_state(saved)
 
 
-def _attempt(solver: NewtonSolver, t_try: float, max_augmentations: int) -> StepResult:
-    solver.bulk.set_time(t_try)
+def _attempt(solver: NewtonSolver, set_time, t_try: float, max_augmentations: int
+             ) -> StepResult:
+    set_time(t_try)
     for h in solver.hooks:
         h.begin_step()
     return solver.solve_step(max_augmentations)

@@ -334,8 +334,8 @@ def run_case(case: Case, solve_fn: Callable | None = None) -> dict:
                    augmentations=sum(s["augmentations"] for s in steps))
         for p in PHASES:
             rec[f"t_{p}"] = float(result.timings.get(p, 0.0))
-        if result.hooks and result.hooks[0].state is not None:
-            rec["slave_nodes"] = int(result.hooks[0].slave.n)
+        if result.pairs and result.pairs[0].state is not None:
+            rec["slave_nodes"] = int(result.pairs[0].slave.n)
         if steps:
             rec["active_nodes"] = steps[-1]["contact"][scene.contacts[0].name]["active_nodes"]
         if case.benchmark == "half_rings":
@@ -357,7 +357,7 @@ def _errors(case: Case, result) -> dict:
         s = result.stress.values()
         return {"err_sigma_yy": float(np.abs(s[:, 1, 1] + 1.0).max())}
     if case.benchmark in ("hertz", "hertz_mc"):
-        d = result.hooks[0].interface()
+        d = result.pairs[0].interface()
         f = result.steps[-1]["contact"][result.scene.contacts[0].name]["force_on_slave"][1]
         return hertz_errors(d["x"], d["pressure"], abs(f))
     return {}

@@ -55,11 +55,11 @@ class Recorder:
         if comm.rank != 0:
             return
         self.u.append(np.concatenate(parts)[self.order])
-        for h in state.hooks:
+        for h in state.pairs:
             d = h.interface()  # the same on every rank: the pair's nodal values are global
             slave_node = np.array([self.dof_to_node[int(g)] for g in h.slave.dofs[:, 0]])
             keys = ["pressure"] + (["t_tangential", "status"] if "status" in d else [])
-            c = self.contact.setdefault(h.pair.name, {"slave_node": slave_node})
+            c = self.contact.setdefault(h.name, {"slave_node": slave_node})
             assert np.array_equal(c["slave_node"], slave_node)
             for k in keys:
                 c.setdefault(k, []).append(np.asarray(d[k]))

@@ -65,7 +65,7 @@ def test_snapshot_of_a_solved_state(tmp_path):
     assert set(np.unique(s.body)) == set(result.domain.cell_groups.values())
     # pressures and positions are those of the pair's interface, and the cells are
     # counter-clockwise polygons (positive area) in the deformed configuration
-    d = result.hooks[0].interface()
+    d = result.pairs[0].interface()
     assert np.allclose(s.pressure, d["pressure"]) and np.allclose(s.surface[:, 0], d["x"])
     p = s.points[s.cells]
     area = 0.5 * np.sum(p[:, :, 0] * np.roll(p[:, :, 1], -1, 1) - np.roll(p[:, :, 0], -1, 1) * p[:, :, 1], axis=1)

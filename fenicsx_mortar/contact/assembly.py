@@ -1,4 +1,4 @@
-"""Contact terms → PETSc: nodal forces and the consistent tangent, sparsity up front.
+"""Contact terms → PETSc: nodal forces and the consistent tangent.
 
 With the weighted gaps g̃_j, nodal areas A_j and pressures p_j (DESIGN.md §4–5):
 
@@ -7,7 +7,8 @@ With the weighted gaps g̃_j, nodal areas A_j and pressures p_j (DESIGN.md §4�
 
 (∂p_j/∂x = −ε ∇g̃_j/A_j + ε g̃_j ∇A_j/A_j² while p_j > 0; the A-term makes K unsymmetric.)
 Everything is built as scipy sparse matrices over the stacked surface coordinates
-[slave x, slave y, …, master x, master y, …] and mapped to global dofs once.
+[slave x, slave y, …, master x, master y, …] and mapped to global dofs once, on insertion
+into the matrix whose sparsity the pair predicted (:meth:`.pair.ContactPair.couplings`).
 
 Cost (issue 7): K is returned as COO triplets with repeated entries (the node-a and node-b
 Hessians of a mortar pair come as one weighted sum over their common local coordinates,
@@ -24,7 +25,25 @@ import numpy as np
 import scipy.sparse as sp
 from petsc4py import PETSc
 
-from .kernel import NodalContributions, nodal_sum
+from .kernel import NodalContributions
+
+
+class Layouts:
+    """Index layouts kept while the structure repeats between Newton iterations (which
+    triplet lands in which CSR slot, the dense Hessian blocks' indices, the Lᵀ C products,
+    the insertion into PETSc). One per contact pair, so that two pairs do not evict each
+    other's layouts at every iteration."""
+
+    def __init__(self):
+        self.csr: dict = {}
+        self.blocks: list = []
+        self.outer: list = []
+        self.insertion = None
+        self.skipped = None
+
+
+#: for callers outside a pair (tests, benchmarks)
+_shared = Layouts()
 
 
 def _gidx(c: NodalContributions, n_slave: int) -> np.ndarray:
@@ -45,16 +64,14 @@ def _rows(c: NodalContributions, m: int) -> np.ndarray:
     return rows
 
 
-_layouts: dict = {}
-
-
-def _csr(vals, rows, cols, shape) -> sp.csr_matrix:
+def _csr(vals, rows, cols, shape, lay: Layouts) -> sp.csr_matrix:
     """CSR from COO triplets (duplicates summed). The layout (which triplet goes to which
     slot) is kept for the last few structures: when the same (rows, cols) come again (the
     next Newton iteration; the gap and area gradients share it) the values are summed into
     it with one bincount instead of a sort."""
     key = (shape, rows.shape[0])
-    lay = _layouts.get(key)
+    layouts = lay.csr
+    lay = layouts.get(key)
     if lay is None or not (np.array_equal(lay[0], rows) and np.array_equal(lay[1], cols)):
         n_cols = np.int64(shape[1])
         uniq, slot = np.unique(rows.astype(np.int64) * n_cols + cols, return_inverse=True)
@@ -62,16 +79,17 @@ def _csr(vals, rows, cols, shape) -> sp.csr_matrix:
         indptr = np.zeros(shape[0] + 1, dtype=itype)
         np.cumsum(np.bincount(uniq // n_cols, minlength=shape[0]), out=indptr[1:])
         lay = (rows.copy(), cols.copy(), slot, (uniq % n_cols).astype(itype), indptr)
-        if len(_layouts) >= 8:
-            _layouts.clear()
-        _layouts[key] = lay
+        if len(layouts) >= 8:
+            layouts.clear()
+        layouts[key] = lay
     data = np.bincount(lay[2], weights=vals, minlength=lay[3].shape[0])
     M = sp.csr_matrix((data, lay[3].copy(), lay[4].copy()), shape=shape)
     M.has_sorted_indices = True
     return M
 
 
-def gradient_matrix(c: NodalContributions, n_slave: int, n_coords: int) -> sp.csr_matrix:
+def gradient_matrix(c: NodalContributions, n_slave: int, n_coords: int,
+                    lay: Layouts = _shared) -> sp.csr_matrix:
     """Rows ∇q_j (q = g̃ or A) over the stacked coordinates, summed over contributions.
 
     Cached on ``c`` (the residual and the tangent of one iterate share it); treat the
@@ -83,7 +101,7 @@ def gradient_matrix(c: NodalContributions, n_slave: int, n_coords: int) -> sp.cs
     if hit is not None and hit[0] is c.grad:
         return hit[1]
     gidx = _gidx(c, n_slave)
-    G = _csr(c.grad.ravel(), _rows(c, gidx.shape[1]), gidx.ravel(), (n_slave, n_coords))
+    G = _csr(c.grad.ravel(), _rows(c, gidx.shape[1]), gidx.ravel(), (n_slave, n_coords), lay)
     c.cache[key] = (c.grad, G)
     return G
 
@@ -111,7 +129,8 @@ def _pair_weights(c: NodalContributions, w: np.ndarray):
     return wa[keep], wb[keep], keep
 
 
-def _hessian_triplets(c: NodalContributions, weight: np.ndarray, n_slave: int):
+def _hessian_triplets(c: NodalContributions, weight: np.ndarray, n_slave: int,
+                      lay: Layouts = _shared):
     """(rows, cols, vals) of Σ_k weight[node_k] ∇²q_k (contributions with weight ≠ 0;
     repeated (row, col) entries are to be summed)."""
     w = weight[c.node]
@@ -124,40 +143,39 @@ def _hessian_triplets(c: NodalContributions, weight: np.ndarray, n_slave: int):
     else:
         keep = np.flatnonzero(w != 0.0)
         vals = (c.hess[keep] * w[keep, None, None]).ravel()
-    rows, cols = _block_indices(gidx[keep])
+    rows, cols = _block_indices(gidx[keep], lay)
     return rows, cols, vals
 
 
-_blocks: list = []
-
-
-def _block_indices(gidx: np.ndarray):
+def _block_indices(gidx: np.ndarray, lay: Layouts):
     """Row and column indices of the dense m × m blocks over the rows of gidx (k, m),
     flattened row-major; in the sparse index type; the last result is reused while the
     structure repeats (between Newton iterations)."""
-    if _blocks and np.array_equal(_blocks[0], gidx):
-        return _blocks[1], _blocks[2]
+    blocks = lay.blocks
+    if blocks and np.array_equal(blocks[0], gidx):
+        return blocks[1], blocks[2]
     m = gidx.shape[1]
     g = gidx.astype(np.int32) if gidx.size and gidx.max() < 2**31 - 1 else gidx
     rows = np.repeat(g, m, axis=1).ravel()
     cols = np.tile(g, (1, m)).ravel()
     rows.setflags(write=False)
     cols.setflags(write=False)
-    _blocks[:] = [gidx.copy(), rows, cols]
+    blocks[:] = [gidx.copy(), rows, cols]
     return rows, cols
 
 
 def hessian_sum(c: NodalContributions, weight: np.ndarray, n_slave: int,
-                n_coords: int) -> sp.coo_matrix:
+                n_coords: int, lay: Layouts = _shared) -> sp.coo_matrix:
     """Σ_k weight[node_k] ∇²q_k over the stacked coordinates (COO, repeated entries to be
     summed)."""
     if c.size == 0 or not np.any(weight[c.node] != 0.0):
         return sp.coo_matrix((n_coords, n_coords))
-    rows, cols, vals = _hessian_triplets(c, weight, n_slave)
+    rows, cols, vals = _hessian_triplets(c, weight, n_slave, lay)
     return sp.coo_matrix((vals, (rows, cols)), shape=(n_coords, n_coords))
 
 
-def test_matrix(gap: NodalContributions, n_slave: int, n_test: int) -> sp.csr_matrix:
+def test_matrix(gap: NodalContributions, n_slave: int, n_test: int,
+                lay: Layouts = _shared) -> sp.csr_matrix:
     """Rows T_j (the Petrov–Galerkin test vectors ``gap.test``, mortar.py) over the stacked
     node coordinates (n_test = 2 (n_slave + n_master)); cached on ``gap``."""
     key = ("T", n_slave, n_test)
@@ -165,11 +183,12 @@ def test_matrix(gap: NodalContributions, n_slave: int, n_test: int) -> sp.csr_ma
     if hit is None:
         t = gap.test
         hit = gap.cache[key] = _csr(t.grad.ravel(), np.repeat(gap.node, 8),
-                                    t.global_indices(n_slave).ravel(), (n_slave, n_test))
+                                    t.global_indices(n_slave).ravel(), (n_slave, n_test), lay)
     return hit
 
 
-def _test_jacobian_triplets(gap: NodalContributions, weight: np.ndarray, n_slave: int):
+def _test_jacobian_triplets(gap: NodalContributions, weight: np.ndarray, n_slave: int,
+                            lay: Layouts = _shared):
     """(rows, cols, vals) of Σ_k weight[node_k] ∂T_k/∂x: rows in the node coordinates of
     the test vectors, columns in the gap's local (curve-point) coordinates."""
     t = gap.test
@@ -191,15 +210,13 @@ def _test_jacobian_triplets(gap: NodalContributions, weight: np.ndarray, n_slave
     return rows, cols, vals.ravel()
 
 
-_outer_layouts: list = []
-
-
-def _outer_rows(L: sp.csr_matrix, C: sp.csr_matrix):
+def _outer_rows(L: sp.csr_matrix, C: sp.csr_matrix, lay: Layouts):
     """(rows, cols, vals) of Lᵀ C = Σ_j L_j ⊗ C_j over the common rows j (repeated entries
     to be summed, as the insertion does anyway): one product per pair of entries of a row,
     gathered through an index layout that is kept while the patterns repeat (Newton
     iterations) — cheaper than a sparse matrix product and its conversions."""
-    lay = _outer_layouts[0] if _outer_layouts else None
+    outer = lay.outer
+    lay = outer[0] if outer else None
     if lay is None or not all(a.shape == b.shape and np.array_equal(a, b) for a, b in
                               zip(lay[0], (L.indptr, L.indices, C.indptr, C.indices))):
         lc, cc = np.diff(L.indptr), np.diff(C.indptr)
@@ -210,14 +227,15 @@ def _outer_rows(L: sp.csr_matrix, C: sp.csr_matrix):
         b = np.repeat(C.indptr[row] - start, size) + np.arange(size.sum())
         lay = ((L.indptr.copy(), L.indices.copy(), C.indptr.copy(), C.indices.copy()),
                a, b, L.indices[a], C.indices[b])
-        _outer_layouts[:] = [lay]
+        outer[:] = [lay]
     _, a, b, rows, cols = lay
     return rows, cols, L.data[a] * C.data[b]
 
 
 def _tangent(gap: NodalContributions, area: NodalContributions, d1: np.ndarray,
              d2: np.ndarray, hw: np.ndarray, n_slave: int, n_coords: int,
-             G: sp.csr_matrix, left: sp.csr_matrix | None = None) -> sp.coo_matrix:
+             G: sp.csr_matrix, lay: Layouts, left: sp.csr_matrix | None = None
+             ) -> sp.coo_matrix:
     """Σ_j d1_j ∇g̃_j ⊗ ∇g̃_j − d2_j ∇g̃_j ⊗ ∇A_j − Σ_k hw[node_k] ∇²g̃_k, i.e.
     Gᵀ (D1 G − D2 G_A) − H, as COO triplets with repeated entries (summed on insertion;
     ``tocsr()`` sums them too). With test vectors (``left`` = their matrix T, rows over the
@@ -242,14 +260,14 @@ def _tangent(gap: NodalContributions, area: NodalContributions, d1: np.ndarray,
             rows.append(np.repeat(na, ga.shape[1]))
             cols.append(ga.ravel())
         C = _csr(np.concatenate(vals), np.concatenate(rows), np.concatenate(cols),
-                 (n_slave, n_coords))
-        r, c, v = _outer_rows(left, C)
+                 (n_slave, n_coords), lay)
+        r, c, v = _outer_rows(left, C, lay)
         parts_r.append(r), parts_c.append(c), parts_v.append(v)
     if gap.size and np.any(hw[gap.node] != 0.0):
         if gap.test is None:
-            r, c, v = _hessian_triplets(gap, hw, n_slave)
+            r, c, v = _hessian_triplets(gap, hw, n_slave, lay)
         else:
-            r, c, v = _test_jacobian_triplets(gap, hw, n_slave)
+            r, c, v = _test_jacobian_triplets(gap, hw, n_slave, lay)
         parts_r.append(r), parts_c.append(c), parts_v.append(-v)
     if not parts_r:
         return sp.coo_matrix(shape)
@@ -257,46 +275,43 @@ def _tangent(gap: NodalContributions, area: NodalContributions, d1: np.ndarray,
                           (np.concatenate(parts_r), np.concatenate(parts_c))), shape=shape)
 
 
-def contact_terms(gap: NodalContributions, area: NodalContributions, enforcement,
-                  n_slave: int, n_coords: int, weight: np.ndarray | None = None,
-                  tangent: bool = True, touching: np.ndarray | None = None,
-                  G: sp.spmatrix | None = None, n_test: int | None = None):
-    """(g̃, A, p, active, R, K) over the stacked coordinates; ``weight`` (0/1 per slave
-    node) selects the nodes whose terms this rank inserts; ``touching`` marks extra nodes
-    that get the penalty stiffness in K (see PairHook.add_jacobian); ``G`` the gap's
-    :func:`gradient_matrix` if already built (it is cached on ``gap`` anyway).
+def normal_force(st, weight: np.ndarray) -> np.ndarray:
+    """−Σ_j weight_j ∇g̃_j over the pair's stacked node coordinates [slave, master] (with
+    Petrov–Galerkin test vectors on the gap, mortar.py: −Σ_j weight_j T_j); ``weight`` is
+    usually the pressure times the 0/1 selection of this rank's nodes."""
+    if st.gap.test is not None:
+        T = test_matrix(st.gap, st.n_slave, st.n_test, st.layouts)
+        return -(T.T @ weight)
+    return st.to_nodes(-(st.G.T @ weight))
 
-    With test vectors on ``gap`` (Hermite/B-spline masters, mortar.py) R and the rows of K
-    are over the stacked NODE coordinates (size ``n_test``), K's columns over the curve's
-    coordinates (n_coords)."""
-    g, A = nodal_sum(gap, n_slave), nodal_sum(area, n_slave)
-    p, active = enforcement.pressure(g, A)
-    w = np.ones(n_slave) if weight is None else weight
-    if G is None:
-        G = gradient_matrix(gap, n_slave, n_coords)
+
+def normal_tangent(st, d1: np.ndarray, d2: np.ndarray, hw: np.ndarray) -> sp.spmatrix:
+    """The tangent of :func:`normal_force` with weight = p w for a nodal law p(g̃, A):
+    d1 = −∂p/∂g̃ w and d2 = ∂p/∂A w on the nodes whose law is differentiated (the active
+    ones), hw = p w (DESIGN.md §5)::
+
+        K = Σ_j d1_j ∇g̃_j ⊗ ∇g̃_j − d2_j ∇g̃_j ⊗ ∇A_j − hw_j ∇²g̃_j
+
+    (∂p_j/∂x = −ε ∇g̃_j/A_j + ε g̃_j ∇A_j/A_j² for the penalty law; the A-term makes K
+    unsymmetric). Over the stacked node coordinates, COO with repeated entries."""
     left = None
-    if gap.test is not None:
-        left = test_matrix(gap, n_slave, n_coords if n_test is None else n_test)
-    R = -((G if left is None else left).T @ (p * w))
-    K = None
-    if tangent:
-        eps = enforcement.epsilon
-        act = (active if touching is None else active | touching) * w
-        As = np.where(A > 0, A, 1.0)
-        K = _tangent(gap, area, act * eps / As, act * eps * g / As**2, p * w, n_slave,
-                     n_coords, G, left)
-    return g, A, p, active, R, K
+    if st.gap.test is not None:
+        left = test_matrix(st.gap, st.n_slave, st.n_test, st.layouts)
+    K = _tangent(st.gap, st.area, d1, d2, hw, st.n_slave, st.n_coords, st.G, st.layouts,
+                 left)
+    return st.to_nodes(K=K, rows_in_nodes=left is not None)
 
 
 def friction_terms(slip: NodalContributions, t: np.ndarray, dt_dg: np.ndarray,
                    dt_dp: np.ndarray, A: np.ndarray, g: np.ndarray, active: np.ndarray,
                    G: sp.spmatrix, GA: sp.spmatrix, epsilon: np.ndarray, n_slave: int,
-                   n_coords: int, weight: np.ndarray, tangent: bool = True):
+                   n_coords: int, weight: np.ndarray, tangent: bool = True,
+                   lay: Layouts = _shared):
     """Tangential terms (friction.py): R_T = Σ_j A_j t_j ∇g_T,j and
 
         K_T = Σ_j A_j ∂t/∂g_T ∇g_T⊗∇g_T + A_j t_j ∇²g_T + t_j ∇g_T⊗∇A_j
                   + A_j ∂t/∂p ∇g_T⊗∇p_j ,   ∇p_j = −ε (∇g̃_j/A_j − g̃_j ∇A_j/A_j²)."""
-    GT = gradient_matrix(slip, n_slave, n_coords)
+    GT = gradient_matrix(slip, n_slave, n_coords, lay)
     R = GT.T @ (A * t * weight)
     if not tangent:
         return R, None
@@ -304,7 +319,7 @@ def friction_terms(slip: NodalContributions, t: np.ndarray, dt_dg: np.ndarray,
     act = active * weight
     Gp = -(sp.diags(epsilon * act / As) @ G - sp.diags(epsilon * act * g / As**2) @ GA)
     K = (GT.T @ sp.diags(A * dt_dg * weight) @ GT
-         + hessian_sum(slip, A * t * weight, n_slave, n_coords)
+         + hessian_sum(slip, A * t * weight, n_slave, n_coords, lay)
          + GT.T @ sp.diags(t * weight) @ GA
          + GT.T @ sp.diags(A * dt_dp * weight) @ Gp)
     return R, K
@@ -317,19 +332,13 @@ def add_to_vector(b: PETSc.Vec, dofs: np.ndarray, values: np.ndarray) -> None:
     b.assemble()
 
 
-_skip_cache: dict = {}
-
-
-def _skipped(dofs: np.ndarray, skip: np.ndarray) -> np.ndarray:
-    """Boolean mask over ``dofs``: which are in ``skip`` (cached for the same arrays)."""
-    key = (id(dofs), id(skip))
-    hit = _skip_cache.get(key)
-    if hit is not None and hit[0] is dofs and hit[1] is skip and hit[2].shape == dofs.shape:
+def _skipped(dofs: np.ndarray, skip: np.ndarray, lay: Layouts) -> np.ndarray:
+    """Boolean mask over ``dofs``: which are in ``skip`` (kept for the same arrays)."""
+    hit = lay.skipped
+    if hit is not None and hit[0] is dofs and hit[1] is skip:
         return hit[2]
     mask = np.isin(dofs, skip)
-    if len(_skip_cache) > 64:
-        _skip_cache.clear()
-    _skip_cache[key] = (dofs, skip, mask)
+    lay.skipped = (dofs, skip, mask)
     return mask
 
 
@@ -344,29 +353,26 @@ class _Pattern:
                  "rows")
 
 
-_patterns: dict = {}
-
-
 def add_to_matrix(A: PETSc.Mat, K: sp.spmatrix, dofs: np.ndarray, skip: np.ndarray,
-                  n_global: int) -> None:
+                  n_global: int, lay: Layouts = _shared) -> None:
     """A[dofs, dofs] += K, leaving out the rows and columns of Dirichlet dofs ``skip``
     (the matrix keeps identity rows/columns there)."""
     K = K.tocoo()
-    pat = _patterns.get(id(A))
+    pat = lay.insertion
     if (pat is not None and pat.A is A and pat.dofs is dofs and pat.skip is skip
             and np.array_equal(pat.row, K.row) and np.array_equal(pat.col, K.col)):
         vals = np.bincount(pat.slot, weights=K.data[pat.sel], minlength=pat.indices.shape[0])
         A.setValuesIJV(pat.indptr, pat.indices, vals, addv=PETSc.InsertMode.ADD,
                        rowmap=pat.rows)
         return
-    out = _skipped(dofs, skip)
+    out = _skipped(dofs, skip, lay)
     structural = ~out[K.row] & ~out[K.col]
     r0, r1 = A.getOwnershipRange()
     r = dofs[K.row]
     if np.all((r[structural] >= r0) & (r[structural] < r1)):
         # serial (or all rows owned): remember the layout of all structural entries (explicit
         # zeros included: adding 0 changes no value, and the slots lie in the contact
-        # couplings preallocated by create_matrix)
+        # couplings preallocated with the matrix)
         sel = np.flatnonzero(structural)
         rl = (r[sel] - r0).astype(np.int64)
         cl = dofs[K.col[sel]].astype(np.int64)
@@ -381,9 +387,7 @@ def add_to_matrix(A: PETSc.Mat, K: sp.spmatrix, dofs: np.ndarray, skip: np.ndarr
         pat.sel, pat.slot = sel, slot
         pat.indptr, pat.indices = indptr, (uniq % n_global).astype(PETSc.IntType)
         pat.rows = (rows + r0).astype(PETSc.IntType)
-        if len(_patterns) > 16:
-            _patterns.clear()
-        _patterns[id(A)] = pat
+        lay.insertion = pat
         vals = np.bincount(slot, weights=K.data[sel], minlength=uniq.shape[0])
         A.setValuesIJV(pat.indptr, pat.indices, vals, addv=PETSc.InsertMode.ADD,
                        rowmap=pat.rows)
@@ -401,31 +405,3 @@ def add_to_matrix(A: PETSc.Mat, K: sp.spmatrix, dofs: np.ndarray, skip: np.ndarr
             sl = slice(M.indptr[row], M.indptr[row + 1])
             A.setValues([row], M.indices[sl].astype(PETSc.IntType), M.data[sl],
                         addv=PETSc.InsertMode.ADD)
-
-
-def create_matrix(a_form, blocks: list[np.ndarray], V) -> PETSc.Mat:
-    """Bulk sparsity plus the contact couplings ``blocks`` (each: global node-block numbers
-    that couple all-to-all), written once with zeros so PETSc keeps the slots. Couplings
-    beyond the prediction (large sliding) still go in, by dynamic allocation."""
-    from .. import _dolfinx as dx
-    im = V.dofmap.index_map
-    n_local = im.size_local + im.num_ghosts
-    l2g = im.local_to_global(np.arange(n_local, dtype=np.int32))
-    order = np.argsort(l2g)
-    sparsity = dx.sparsity_pattern(a_form)
-    known = []
-    for blk in blocks:
-        pos = np.searchsorted(l2g, blk, sorter=order)
-        pos = np.minimum(pos, len(order) - 1)
-        local = order[pos][l2g[order[pos]] == blk].astype(np.int32)
-        if len(local):
-            sparsity.insert(local, local)
-            known.append(local)
-    A = dx.matrix_from_sparsity(a_form, sparsity)
-    bs = V.dofmap.index_map_bs
-    for local in known:
-        g = (l2g[local][:, None] * bs + np.arange(bs)).ravel().astype(PETSc.IntType)
-        A.setValues(g, g, np.zeros((len(g), len(g))), addv=PETSc.InsertMode.ADD)
-    A.assemble()
-    A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
-    return A

@@ -42,6 +42,7 @@ import scipy.sparse.linalg as spla
 from . import ad, projection
 from .ad import Scalar, Vec2
 from .kernel import chain_links
+from .registry import SMOOTHINGS
 
 
 class MasterCurve(abc.ABC):
@@ -297,6 +298,7 @@ class _NeighbourStencil(MasterCurve):
         return P[1], P[2]
 
 
+@SMOOTHINGS.register("none")
 class Polyline(_NeighbourStencil):
     """The C0 polyline: x(ξ) = (1−ξ) x_c + ξ x_d, a = x_d − x_c on segment (c, d).
 
@@ -373,8 +375,10 @@ class AveragedNormals(_NeighbourStencil):
 
     VARIANTS = {"simple": _normal_simple, "weighted": _normal_weighted,
                 "tangent": _normal_tangent}
+    variant = "tangent"
 
-    def __init__(self, x, seg, variant: str = "tangent"):
+    def __init__(self, x, seg, variant: str | None = None):
+        variant = variant or self.variant
         if variant not in self.VARIANTS:
             raise ValueError(f"unknown averaged-normal variant {variant!r}; expected one of "
                              f"{sorted(self.VARIANTS)}")
@@ -383,7 +387,7 @@ class AveragedNormals(_NeighbourStencil):
         self._node_normal = self.VARIANTS[variant]
 
     def with_nodes(self, x):
-        return AveragedNormals(x, self.seg, self.variant)
+        return type(self)(x, self.seg, self.variant)
 
     def node_normals(self, seg_index, P) -> Tuple[Vec2, Vec2]:
         """Unit averaged normals n̄_c, n̄_d of the variant."""
@@ -426,6 +430,25 @@ class AveragedNormals(_NeighbourStencil):
         return F, ad.cross(r, dn) - ad.cross(a, m)
 
 
+@SMOOTHINGS.register("averaged-simple")
+class AveragedSimple(AveragedNormals):
+    """Averaged normals, eq. 3.2."""
+    variant = "simple"
+
+
+@SMOOTHINGS.register("averaged-weighted")
+class AveragedWeighted(AveragedNormals):
+    """Averaged normals weighted by segment length, eq. 3.3."""
+    variant = "weighted"
+
+
+@SMOOTHINGS.register("averaged-tangent")
+class AveragedTangent(AveragedNormals):
+    """Normal of the averaged tangent, eq. 3.4."""
+    variant = "tangent"
+
+
+@SMOOTHINGS.register("hermite")
 class Hermite(_NeighbourStencil):
     """C1 cubic Hermite segments with averaged nodal tangents (DESIGN.md §6.4, eqs.
     3.6–3.13): on segment (c, d) of length l,
@@ -665,6 +688,7 @@ class BSplineParametrization:
                                        shape=(self.n_points, self.n_nodes))
 
 
+@SMOOTHINGS.register("bspline")
 class BSpline(MasterCurve):
     """One global cubic B-spline per master chain, interpolating all its nodes (C2;
     DESIGN.md §6.5, eqs. 3.16–3.33): clamped for an open chain, periodic for a closed one.
@@ -755,18 +779,10 @@ class BSpline(MasterCurve):
 
 
 # ---------------------------------------------------------------------- factory
-SMOOTHINGS = ("none", "averaged-simple", "averaged-weighted", "averaged-tangent",
-              "hermite", "bspline")
-
-
 def make_curve(smoothing: str, x: np.ndarray, seg: np.ndarray) -> MasterCurve:
-    """The master curve of a contact pair's ``smoothing`` (scene names, DESIGN.md §6)."""
-    if smoothing == "none":
-        return Polyline(x, seg)
-    if smoothing.startswith("averaged-") and smoothing in SMOOTHINGS:
-        return AveragedNormals(x, seg, smoothing[len("averaged-"):])
-    if smoothing == "hermite":
-        return Hermite(x, seg)
-    if smoothing == "bspline":
-        return BSpline(x, seg)
-    raise ValueError(f"unknown smoothing {smoothing!r}; expected one of {', '.join(SMOOTHINGS)}")
+    """The master curve of a contact pair's ``smoothing`` (a registered name, DESIGN.md §6)."""
+    try:
+        cls = SMOOTHINGS[smoothing]
+    except KeyError as e:
+        raise ValueError(str(e.args[0])) from None
+    return cls(x, seg)

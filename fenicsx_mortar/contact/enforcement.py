@@ -1,20 +1,50 @@
 """Normal-contact enforcement on nodal weighted gaps (DESIGN.md §5). One class per method.
 
-With g̃_j the weighted gap and A_j the nodal area of slave node j (A_j > 0 only where the
-node's support sees the master), the nodal pressure is
+An enforcement turns the nodal weighted gaps g̃_j and areas A_j of a pair (A_j > 0 only
+where the node's support sees the master) into contact pressures p_j, and contributes the
+contact residual and tangent. The built-in methods are nodal laws
 
     p_j = ⟨p̂_j − ε g̃_j / A_j⟩₊ ,
 
-p̂ = 0 for penalty, the Uzawa multiplier for the augmented Lagrangian. A node is active when
-its trial pressure p̂_j − ε g̃_j/A_j is ≥ 0: a closed gap (g̃ = 0) counts as active, so a body
-held only by contact is not singular in the first iteration.
+p̂ = 0 for penalty, the Uzawa multiplier for the augmented Lagrangian; for them the generic
+terms of :mod:`.assembly` apply, R = −Σ_j p_j ∇g̃_j with the tangent through ∂p/∂g̃, ∂p/∂A
+(:class:`NodalPressure`). A node is active when its trial pressure p̂_j − ε g̃_j/A_j is
+≥ 0: a closed gap (g̃ = 0) counts as active, so a body held only by contact is not singular
+in the first iteration. A method with other unknowns (Lagrange multipliers) overrides
+:meth:`Enforcement.residual` and :meth:`Enforcement.tangent`.
+
+A new enforcement is one subclass registered under its scene name::
+
+    @ENFORCEMENTS.register("my-law")
+    class MyLaw(Enforcement):
+        def pressure(self, g, A): ...   # → NodalPressure
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
+import scipy.sparse as sp
+
+from . import assembly
+from .registry import ENFORCEMENTS
+
+
+class NodalPressure(NamedTuple):
+    """p_j per slave node, the active mask, and ∂p_j/∂g̃_j, ∂p_j/∂A_j at every node that
+    sees the master (the tangent uses them on the active nodes, and at the first iterate of
+    a step on the touching ones too: :meth:`Enforcement.tangent`)."""
+
+    p: np.ndarray
+    active: np.ndarray
+    dp_dg: np.ndarray
+    dp_dA: np.ndarray
 
 
 class Enforcement:
+    """Base: ε per node (a start value per load step), the multiplier history p̂, the
+    Alart–Curnier KKT residual, and the generic nodal-law residual and tangent."""
+
     name = ""
 
     def __init__(self, epsilon: float, n_nodes: int, tolerance: float,
@@ -29,6 +59,7 @@ class Enforcement:
         self.multiplier = np.zeros(n_nodes)      # p̂ (zero for penalty)
         self._converged_multiplier = self.multiplier.copy()
 
+    # -- the nodal law --------------------------------------------------------------
     def trial(self, g: np.ndarray, A: np.ndarray) -> np.ndarray:
         """p̂ − ε g̃/A where the node sees the master, −inf elsewhere."""
         out = np.full(g.shape, -np.inf)
@@ -36,30 +67,50 @@ class Enforcement:
         out[seen] = self.multiplier[seen] - self.epsilon[seen] * g[seen] / A[seen]
         return out
 
-    def pressure(self, g: np.ndarray, A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(p, active mask)."""
+    def pressure(self, g: np.ndarray, A: np.ndarray) -> NodalPressure:
         t = self.trial(g, A)
         active = t >= 0.0
-        return np.where(active, t, 0.0), active
+        As = np.where(A > 0, A, 1.0)
+        eps = self.epsilon
+        return NodalPressure(np.where(active, t, 0.0), active, -(eps / As), eps * g / As**2)
 
-    def complementarity(self, g: np.ndarray, A: np.ndarray) -> np.ndarray:
+    def complementarity(self, g: np.ndarray, A: np.ndarray, p: np.ndarray) -> np.ndarray:
         """|p_j − ⟨p_j − ε₀ g̃_j/A_j⟩₊| / max(p) per node (0 where the node sees no master):
         the Alart–Curnier function, relative to the pressure scale; zero iff g ≥ 0, p ≥ 0
         and p g = 0. Measured with the fixed ε₀, so raising ε does not hide a gap. A gap
         within ``gap_resolution`` (round-off of the coordinates) counts as closed: no update
         can close it further (seen: NTS on the patch test stalled at |g̃/A| = 2e-16 × 3 with
         a KKT residual of 3e-10 at the first load increment, where p is small)."""
-        p, _ = self.pressure(g, A)
         seen = A > 0
         c = np.zeros_like(g)
         c[seen] = np.abs(p[seen] - np.maximum(p[seen] - self.epsilon0 * g[seen] / A[seen], 0.0))
         c = np.maximum(c - self.epsilon0 * self.gap_resolution, 0.0)
         return c / p.max() if p.max(initial=0.0) > 0 else c
 
-    def kkt_residual(self, g: np.ndarray, A: np.ndarray) -> float:
-        return float(self.complementarity(g, A).max(initial=0.0))
+    def kkt_residual(self, g: np.ndarray, A: np.ndarray, p: np.ndarray) -> float:
+        return float(self.complementarity(g, A, p).max(initial=0.0))
 
-    def augment(self, g: np.ndarray, A: np.ndarray) -> bool:
+    # -- contributions to the system --------------------------------------------------
+    def residual(self, st, weight: np.ndarray) -> np.ndarray:
+        """−Σ_j w_j p_j ∇g̃_j (or −Σ_j w_j p_j T_j with Petrov–Galerkin test vectors) over
+        the pair's stacked coordinates."""
+        return assembly.normal_force(st, st.p * weight)
+
+    def tangent(self, st, weight: np.ndarray, first: bool) -> sp.spmatrix:
+        """∂(residual)/∂x. At the first iterate of a load step the nodes whose average gap is
+        closed to within 1 % of their support length also get the penalty stiffness: a body
+        held only by contact then has a non-singular tangent even where a curved surface
+        touches a flat one at a single point (its nodes' weighted gaps are small but
+        positive)."""
+        law = st.law
+        on = law.active
+        if first:
+            on = on | ((st.A > 0) & (st.g <= 0.01 * st.A**2))
+        act = on * weight
+        return assembly.normal_tangent(st, -law.dp_dg * act, law.dp_dA * act, law.p * weight)
+
+    # -- between Newton solves and steps ----------------------------------------------
+    def augment(self, g: np.ndarray, A: np.ndarray, p: np.ndarray) -> bool:
         """Between converged Newton solves; True when another solve is needed."""
         return False
 
@@ -73,25 +124,34 @@ class Enforcement:
     def reject(self) -> None:
         self.multiplier = self._converged_multiplier.copy()
 
+    def state_dict(self) -> dict[str, np.ndarray]:
+        return {"multiplier": self.multiplier.copy()}
 
+    def load_state_dict(self, d: dict[str, np.ndarray]) -> None:
+        self.multiplier = np.array(d["multiplier"], dtype=float)
+        self.accept()
+
+
+@ENFORCEMENTS.register("penalty")
 class Penalty(Enforcement):
     """p_j = ε ⟨−g̃_j/A_j⟩₊ : the answer depends on ε (penetration ~ p/ε).
 
     Continuation for a stiff ε: each load step is solved first with ε_start = min(ε,
-    ``start``), then again with ε raised ×10 per converged solve until it is ε. Only the last solve defines the answer; the others give it a start next to
-    it. From a touching state a penalty far stiffer than the bodies makes the active set
-    jump between Newton iterates (Hertz at a/4 with 100 E/h: 25 iterations, then every cut
-    down to the floor, failed; with continuation 3 solves)."""
-    name = "penalty"
+    ``start``), then again with ε raised ×10 per converged solve until it is ε. Only the
+    last solve defines the answer; the others give it a start next to it. From a touching
+    state a penalty far stiffer than the bodies makes the active set jump between Newton
+    iterates (Hertz at a/4 with 100 E/h: 25 iterations, then every cut down to the floor,
+    failed; with continuation 3 solves)."""
     growth = 10.0
 
-    def augment(self, g: np.ndarray, A: np.ndarray) -> bool:
+    def augment(self, g: np.ndarray, A: np.ndarray, p: np.ndarray) -> bool:
         if self.epsilon[0] >= self.epsilon0:
             return False
         self.epsilon[:] = min(self.epsilon[0] * self.growth, self.epsilon0)
         return True
 
 
+@ENFORCEMENTS.register("alm")
 class AugmentedLagrangian(Enforcement):
     """Uzawa: after each converged Newton solve p̂ ← p, until the KKT residual is below
     ``tolerance``; the converged answer does not depend on ε.
@@ -103,20 +163,23 @@ class AugmentedLagrangian(Enforcement):
     whose support only partly sees the master (a slave sliding past the master's end) has
     a small A_j and needs the larger ε_j for the same rate, while round-off in ε_j g̃_j
     stays at the level of the other nodes. The later solves start next to the answer,
-    where a stiff ε does no harm."""
-    name = "alm"
+    where a stiff ε does no harm. The ALM answer does not depend on ε, and a start stiffer
+    than the bodies makes the first Newton solve fragile (Hertz at h = a/4 fails from
+    10 E/h): ε₀ is at most the pair's E/h (``start``)."""
     growth, max_growth = 10.0, 100.0
 
-    def __init__(self, *args, **kw):
-        # (the pair starts ALM at ε₀ = min(ε, E/h) already: its ``start`` is ε₀)
-        super().__init__(*args, **kw)
+    def __init__(self, epsilon: float, n_nodes: int, tolerance: float,
+                 gap_resolution: float = 0.0, start: float | None = None):
+        if start is not None:
+            epsilon = min(epsilon, start)
+        super().__init__(epsilon, n_nodes, tolerance, gap_resolution, start)
         self._last = np.full(self.epsilon.shape, np.inf)
 
-    def augment(self, g: np.ndarray, A: np.ndarray) -> bool:
-        c = self.complementarity(g, A)
+    def augment(self, g: np.ndarray, A: np.ndarray, p: np.ndarray) -> bool:
+        c = self.complementarity(g, A, p)
         if c.max(initial=0.0) <= self.tolerance:
             return False
-        self.multiplier, _ = self.pressure(g, A)
+        self.multiplier = p.copy()
         seen = A > 0
         if seen.any():
             cap = self.max_growth * self.epsilon0 * np.maximum(
@@ -130,6 +193,3 @@ class AugmentedLagrangian(Enforcement):
     def begin_step(self) -> None:
         super().begin_step()
         self._last[:] = np.inf
-
-
-ENFORCEMENTS = {c.name: c for c in (Penalty, AugmentedLagrangian)}

@@ -1,4 +1,5 @@
-"""Coulomb friction with a moving friction cone (DESIGN.md §3, §5).
+"""Friction laws (DESIGN.md §3, §5): a frictionless null object and Coulomb friction with a
+moving friction cone. One class per law, registered under its scene name.
 
 Per slave node j with its closest-point projection ξ̄_j on master segment s_j (current
 configuration) and a reference point — a material point (segment r_j, ξ_j^ref) of the
@@ -17,14 +18,22 @@ Moving cone: after a converged step, a sticking node keeps its reference point; 
 node's reference moves to the point that leaves exactly the elastic part t_j/ε_T of the
 slip, x_ref = x_m(ξ̄_j) − (t_j/ε_T) t̂; a node out of contact re-anchors at its current
 projection, so a node that lifts off and comes back starts from rest.
+
+A new law with the same kinematics is a subclass of :class:`Coulomb` with its own
+:meth:`~Coulomb.traction` (the return map), registered under its name.
 """
 from __future__ import annotations
 
-import numpy as np
+from typing import NamedTuple
 
-from . import ad
+import numpy as np
+import scipy.sparse as sp
+
+from . import ad, assembly
 from .ad import Jet2
-from .kernel import NodalContributions
+from .kernel import NodalContributions, nodal_sum
+from .projection import closest_segments
+from .registry import FRICTION_LAWS
 
 STICK, SLIP, INACTIVE = 1, 2, 0
 
@@ -72,14 +81,97 @@ def slip_direction(curve, seg, xi, P, a):
     return ad.unit(a)
 
 
-class CoulombFriction:
-    """Return map and per-node history (reference points) for one contact pair."""
+class TangentialState(NamedTuple):
+    """The friction part of a :class:`~.state.ContactState`."""
+
+    slip: NodalContributions   # g_T,j per slave node in contact range, with derivatives
+    gT: np.ndarray             # (n_slave,) nodal slips
+    t: np.ndarray              # (n_slave,) tangential tractions
+    status: np.ndarray         # (n_slave,) STICK / SLIP / INACTIVE
+    dt_dg: np.ndarray          # ∂t/∂g_T
+    dt_dp: np.ndarray          # ∂t/∂p
+    proj: tuple                # (nodes, segments, ξ̄, |a|) of the slave nodes' projections
+
+
+@FRICTION_LAWS.register("none")
+class Frictionless:
+    """No tangential traction: contributes nothing, keeps no history."""
+
+    path_dependent = False
+
+    def __init__(self, mu: float = 0.0, epsilon_t: float = 0.0, n_slave: int = 0):
+        self.mu = float(mu)
+
+    def update(self, st, surface) -> None:
+        """Tangential kinematics and tractions of the iterate (sets ``st.tangential``)."""
+
+    def residual(self, st, weight: np.ndarray):
+        return None
+
+    def tangent(self, st, weight: np.ndarray, epsilon: np.ndarray):
+        return None
+
+    def decision(self, st) -> np.ndarray | int:
+        """This law's part of the per-node decision that the cycling monitor watches."""
+        return 0
+
+    def interface(self, st) -> dict[str, np.ndarray]:
+        return {}
+
+    def record(self, st, force_on_slave) -> dict:
+        return {}
+
+    def begin_step(self) -> None:
+        pass
+
+    def accept(self, st) -> None:
+        pass
+
+    def reject(self) -> None:
+        pass
+
+    def state_dict(self) -> dict[str, np.ndarray]:
+        return {}
+
+    def load_state_dict(self, d: dict[str, np.ndarray]) -> None:
+        pass
+
+
+@FRICTION_LAWS.register("coulomb")
+class Coulomb(Frictionless):
+    """Coulomb's law with the return map of the module docstring; history: each slave
+    node's reference point (segment, ξ) on the master."""
+
+    path_dependent = True
 
     def __init__(self, mu: float, epsilon_t: float, n_slave: int):
         self.mu, self.epsilon_t = float(mu), float(epsilon_t)
         self.ref_seg = np.full(n_slave, -1, dtype=np.int64)
         self.ref_xi = np.zeros(n_slave)
         self._committed = (self.ref_seg.copy(), self.ref_xi.copy())
+        self._segment = np.full(n_slave, -1, dtype=np.int64)  # last projection segment
+
+    # -- kinematics ---------------------------------------------------------------------
+    def update(self, st, surface) -> None:
+        """Projections of the slave nodes, slips since their reference points, return map."""
+        xs, xm, curve = st.xs, st.xm, st.curve
+        ps, pm = st.pairs
+        n_ms = max(len(curve.seg), 1)
+        key = np.unique(np.concatenate([surface.seg[ps, 0], surface.seg[ps, 1]]) * n_ms
+                        + np.concatenate([pm, pm]))
+        nodes, segs = closest_segments(xs, xm, key // n_ms, key % n_ms, curve, self._segment)
+        self._segment[:] = -1
+        self._segment[nodes] = segs
+        P = curve.split_points(curve.local_points(segs, xm))
+        xi = np.asarray(curve.project(segs, (xs[nodes, 0], xs[nodes, 1]), P), dtype=float)
+        self.anchor_missing(nodes, segs, xi)
+        slip = slip_contributions(xs, xm, curve, nodes, segs, self.ref_seg[nodes],
+                                  self.ref_xi[nodes])
+        gT = surface.owned_sum(nodal_sum(slip, surface.n))
+        t, status, dt_dg, dt_dp = self.traction(gT, st.p, st.active)
+        _, a = curve.evaluate(segs, xi, P)
+        st.tangential = TangentialState(slip, gT, t, status, dt_dg, dt_dp,
+                                        (nodes, segs, xi, np.hypot(*a)))
 
     def anchor_missing(self, nodes: np.ndarray, seg: np.ndarray, xi: np.ndarray) -> None:
         """Nodes without a reference (first contact) take their current projection."""
@@ -104,14 +196,50 @@ class CoulombFriction:
         status = np.where(stick, STICK, np.where(slip, SLIP, INACTIVE))
         return t, status, dt_dg, dt_dp
 
-    def commit(self, nodes, seg, xi, t, status, length) -> None:
-        """Moving cone after a converged step (see module docstring). ``length`` is |a| of
-        the current segment, to turn the elastic slip t/ε_T into a parameter offset."""
+    # -- contributions --------------------------------------------------------------------
+    def _terms(self, st, weight: np.ndarray, epsilon, tangent: bool):
+        ts = st.tangential
+        return assembly.friction_terms(
+            ts.slip, ts.t, ts.dt_dg, ts.dt_dp, st.A, st.g, st.active, st.G, st.G_area,
+            epsilon, st.n_slave, st.n_coords, weight, tangent, st.layouts)
+
+    def residual(self, st, weight: np.ndarray) -> np.ndarray:
+        return st.to_nodes(self._terms(st, weight, None, tangent=False)[0])
+
+    def tangent(self, st, weight: np.ndarray, epsilon: np.ndarray) -> sp.spmatrix:
+        return st.to_nodes(K=self._terms(st, weight, epsilon, tangent=True)[1])
+
+    def decision(self, st) -> np.ndarray:
+        ts = st.tangential
+        return 2 * ts.status.astype(np.int8) + 8 * (ts.t < 0)
+
+    # -- outputs ------------------------------------------------------------------------
+    def interface(self, st) -> dict[str, np.ndarray]:
+        ts = st.tangential
+        names = {STICK: "stick", SLIP: "slip", INACTIVE: "inactive"}
+        return dict(t_tangential=ts.t, slip=ts.gT,
+                    status=np.array([names[int(k)] for k in ts.status]))
+
+    def record(self, st, tangential_on_slave) -> dict:
+        ts = st.tangential
+        return {"tangential_force_on_slave": [float(-tangential_on_slave[0]),
+                                              float(-tangential_on_slave[1])],
+                "tangential_force": float(np.sum(ts.t * st.A)),
+                "stick_nodes": int(np.sum(ts.status == STICK)),
+                "slip_nodes": int(np.sum(ts.status == SLIP))}
+
+    # -- history --------------------------------------------------------------------------
+    def accept(self, st) -> None:
+        """Moving cone after a converged step (see module docstring)."""
+        ts = st.tangential
+        nodes, segs, xi, length = ts.proj
+        t, status = ts.t[nodes], ts.status[nodes]
         ref_seg, ref_xi = self.ref_seg.copy(), self.ref_xi.copy()
         slipping = status == SLIP
         off = status == INACTIVE
         n = nodes[slipping | off]
-        ref_seg[n] = seg[slipping | off]
+        ref_seg[n] = segs[slipping | off]
+        # |a| of the current segment turns the elastic slip t/ε_T into a parameter offset
         ref_xi[n] = xi[slipping | off] - np.where(
             slipping, t / (self.epsilon_t * length), 0.0)[slipping | off]
         self.ref_seg, self.ref_xi = ref_seg, ref_xi
@@ -119,3 +247,13 @@ class CoulombFriction:
 
     def reject(self) -> None:
         self.ref_seg, self.ref_xi = (a.copy() for a in self._committed)
+
+    def state_dict(self) -> dict[str, np.ndarray]:
+        return {"ref_seg": self.ref_seg, "ref_xi": self.ref_xi}
+
+    def load_state_dict(self, d: dict[str, np.ndarray]) -> None:
+        self.ref_seg = np.array(d["ref_seg"], dtype=np.int64)
+        self.ref_xi = np.array(d["ref_xi"], dtype=float)
+        # the loaded history becomes the committed one (reject() restores from it)
+        self._committed = (self.ref_seg.copy(), self.ref_xi.copy())
+        self.reject()

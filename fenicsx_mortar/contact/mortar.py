@@ -392,8 +392,7 @@ def _pair_block(X: np.ndarray, pm: np.ndarray, curve: MasterCurve, n_gauss: int,
         dv = ad.sub(ad.add(va, ad.scale(ad.sub(vb, va), zeta)),
                     ad.add(vc, ad.scale(ad.sub(vd, vc), xi)))
         tests = _Integrand(ad.dot(dv, n), J, zeta, w, bounds)
-    return (gaps, tests, zeta.val, np.broadcast_to(ad.value(xi), zeta.shape),
-            J.val * w)
+    return gaps, tests
 
 
 def _area_jets(X: np.ndarray, lo: Jet2, hi: Jet2):
@@ -432,7 +431,7 @@ def weighted_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarr
                   master_seg: np.ndarray, curve: MasterCurve,
                   pairs: Tuple[np.ndarray, np.ndarray], n_gauss: int = 2,
                   block: int = 2048
-                  ) -> Tuple[NodalContributions, NodalContributions, Triplets, Triplets]:
+                  ) -> Tuple[NodalContributions, NodalContributions]:
     """Mortar weighted gaps g̃_j and nodal areas A_j with exact derivatives, and D, M.
 
     ``curve`` must be built on the chain ``master_seg`` (its topology and stencils are
@@ -457,10 +456,9 @@ def weighted_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarr
 
     # cheap float pass first: only contributing pairs get the (…, m, m) jet work
     xs = np.asarray(slave_x, dtype=float)
-    empty_coo = Triplets(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))
     if ps.shape[0] == 0:
         e = NodalContributions.empty(2, L)
-        return e, NodalContributions.empty(2, L), empty_coo, empty_coo
+        return e, NodalContributions.empty(2, L)
     lay = _layout(ps, pm, slave_seg, chain_m, master_seg.shape[0])
     xa0, xb0 = _columns(xs, lay.na), _columns(xs, lay.nb)
     lo, hi, keep, mix = _prepass(xa0, xb0, curve, master_x, lay)
@@ -470,7 +468,7 @@ def weighted_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarr
     K = ps.shape[0]
     if K == 0:
         e = NodalContributions.empty(2, L)
-        return e, NodalContributions.empty(2, L), empty_coo, empty_coo
+        return e, NodalContributions.empty(2, L)
 
     na, nb = lay.na.take(keep), lay.nb.take(keep)
     stencil = curve.stencil(pm)
@@ -482,16 +480,13 @@ def weighted_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarr
     # outputs per (node a / b, pair): reshaped to rows [0, K) for node a, [K, 2K) for node b
     val = np.empty((2, 2, K))                   # (gap / area, node, pair)
     grad = np.empty((2, 2, K, m))
-    z = np.empty((n_gauss, K))
-    xv = np.empty((n_gauss, K))
-    Jw = np.empty((n_gauss, K))
     test = curve.hat_test
     if test:
         tgrad = np.empty((2, K, 8))
     gap_blocks, test_blocks = [], []
     for b0 in range(0, K, block):
         b1 = min(b0 + block, K)
-        gaps, tests, z[:, b0:b1], xv[:, b0:b1], Jw[:, b0:b1] = _pair_block(
+        gaps, tests = _pair_block(
             X[b0:b1], pm[b0:b1], curve, n_gauss,
             ends if b1 - b0 == K else ends.subset(slice(b0, b1)), test)
         # values and gradients now; the Hessians when the tangent asks (_Deferred)
@@ -528,13 +523,42 @@ def weighted_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarr
     area = NodalContributions(node.copy(), slave_nodes.copy(), master_nodes.copy(),
                               val[1].reshape(2 * K), grad[1].reshape(2 * K, m), area_hessian)
 
-    # mortar matrices (values only), 1-point-per-Gauss sums of N_j N_k and N_j N̂_l
-    Na = (1.0 - z) * Jw
-    Nb = z * Jw
+    return gap, area
+
+
+def mortar_matrices(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarray,
+                    curve: MasterCurve, pairs: Tuple[np.ndarray, np.ndarray], n_gauss: int = 2
+                    ) -> Tuple[Triplets, Triplets]:
+    """The mortar matrices D_jk = ∫ N_j N_k dΓ (slave × slave) and M_jl = ∫ N_j N̂_l(ξ) dΓ
+    (slave × master node; N̂ the master segment's linear shape functions at the
+    projection ξ) as COO triplets, values only, over the same segmentation and Gauss points
+    as :func:`weighted_gaps` (step 4 of the module docstring)."""
+    ps = np.asarray(pairs[0], dtype=np.int64)
+    pm = np.asarray(pairs[1], dtype=np.int64)
+    xs = np.asarray(slave_x, dtype=float)
+    empty = Triplets(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))
+    if ps.shape[0] == 0:
+        return empty, empty
+    lo, hi, keep = segmentation(xs, slave_seg, curve, (ps, pm), master_x)
+    keep = np.flatnonzero(keep)
+    if keep.shape[0] == 0:
+        return empty, empty
+    lo, hi, pm = lo[keep], hi[keep], pm[keep]
+    seg_s = np.asarray(slave_seg, dtype=np.int64).reshape(-1, 2)
+    na, nb = seg_s[ps[keep], 0], seg_s[ps[keep], 1]
+    xa, xb = (xs[na, 0], xs[na, 1]), (xs[nb, 0], xs[nb, 1])
+    s, w = gauss_legendre_01(n_gauss)
+    z = lo + (hi - lo) * s[:, None]                          # (n_gauss, K)
+    x_s = (xa[0] + (xb[0] - xa[0]) * z, xa[1] + (xb[1] - xa[1]) * z)
+    P = curve.split_points(curve.local_points(pm, master_x))
+    xi = np.broadcast_to(ad.value(curve.gap(pm[None, :], x_s, P)[1]), z.shape)
+    Jw = np.hypot(xb[0] - xa[0], xb[1] - xa[1]) * (hi - lo) * w[:, None]
+    mc, md = curve.seg[pm, 0], curve.seg[pm, 1]
+    Na, Nb = (1.0 - z) * Jw, z * Jw
     D = Triplets(np.concatenate([na, na, nb, nb]), np.concatenate([na, nb, na, nb]),
                  np.concatenate([(Na * (1.0 - z)).sum(0), (Na * z).sum(0),
                                  (Nb * (1.0 - z)).sum(0), (Nb * z).sum(0)]))
     M = Triplets(np.concatenate([na, na, nb, nb]), np.concatenate([mc, md, mc, md]),
-                 np.concatenate([(Na * (1.0 - xv)).sum(0), (Na * xv).sum(0),
-                                 (Nb * (1.0 - xv)).sum(0), (Nb * xv).sum(0)]))
-    return gap, area, D, M
+                 np.concatenate([(Na * (1.0 - xi)).sum(0), (Na * xi).sum(0),
+                                 (Nb * (1.0 - xi)).sum(0), (Nb * xi).sum(0)]))
+    return D, M

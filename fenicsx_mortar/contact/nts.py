@@ -35,11 +35,10 @@ from . import ad
 from .ad import Jet2
 from .curves import MasterCurve
 from .kernel import NodalContributions, chain_links
+from .projection import closest_segments
 
 
-STICKY_TOL = 1e-8
 BLEND = 0.1  # fraction of a segment next to each of its nodes where the gap blends (below)
-WEDGE = 0.5
 
 
 def _node_weight(xi):
@@ -48,35 +47,6 @@ def _node_weight(xi):
     v = ad.value(xi)
     t = (BLEND - xi) * (1.0 / BLEND)
     return ad.where(v <= 0.0, 1.0, ad.where(v >= BLEND, 0.0, t * t * (3.0 - 2.0 * t)))
-
-
-def _closest_segments(slave_x, master_x, nodes, segs, curve, previous=None):
-    """Per node, the qualifying candidate segment with the smallest |g| (values only).
-
-    With ``previous`` (segment chosen per slave node before, −1 for none) a node keeps its
-    segment while it projects within [−tol, 1 + tol] of it: at a master node the two
-    adjacent segments tie, their normals differ, and a choice that flips with round-off
-    between Newton iterations makes the residual jump (Newton then cycles)."""
-    P = curve.split_points(curve.local_points(segs, master_x))
-    xj = (slave_x[nodes, 0], slave_x[nodes, 1])
-    g, xi = curve.gap(segs, xj, P)
-    g, xi = ad.value(g), ad.value(xi)
-    ok = (xi >= 0.0) & (xi <= 1.0)
-    kept = np.zeros_like(ok)
-    if previous is not None:
-        kept = (previous[nodes] == segs) & (xi >= -STICKY_TOL) & (xi <= 1.0 + STICKY_TOL)
-    # blind wedge outside a convex master corner: no segment qualifies, the closest master
-    # point is the corner node itself (its gap is measured along the averaged normal)
-    regular = np.zeros(int(nodes.max(initial=-1)) + 1, dtype=bool)
-    regular[nodes[ok | kept]] = True
-    wedge = ~regular[nodes] & (xi >= -WEDGE) & (xi <= 1.0 + WEDGE)
-    ok |= kept | wedge
-    nodes, segs, g, kept = nodes[ok], segs[ok], g[ok], kept[ok]
-    order = np.lexsort((np.abs(g), ~kept, nodes))
-    nodes, segs = nodes[order], segs[order]
-    first = np.ones(nodes.shape[0], dtype=bool)
-    first[1:] = nodes[1:] != nodes[:-1]
-    return nodes[first], segs[first]
 
 
 def node_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarray,
@@ -104,7 +74,7 @@ def node_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarray,
     segs = np.concatenate([pm, pm])
     key = np.unique(nodes * n_ms + segs)
     nodes, segs = key // n_ms, key % n_ms
-    nodes, segs = _closest_segments(slave_x, master_x, nodes, segs, curve, previous)
+    nodes, segs = closest_segments(slave_x, master_x, nodes, segs, curve, previous)
     if previous is not None:
         previous[:] = -1
         previous[nodes] = segs

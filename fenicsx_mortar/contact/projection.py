@@ -173,6 +173,45 @@ def project(curve, seg_index, xs, P):
     return xi1 - curve.condition(seg_index, xi1, xs, P) * inv
 
 
+STICKY_TOL = 1e-8
+WEDGE = 0.5
+
+
+def closest_segments(slave_x, master_x, nodes, segs, curve, previous=None):
+    """Per slave node, the qualifying candidate segment with the smallest |g| (values
+    only): NTS contact (:mod:`.nts`) and the friction kinematics (:mod:`.friction`).
+
+    Candidates are (``nodes``, ``segs``) rows; a segment qualifies where the node projects
+    into ξ ∈ [0, 1]; with none, the segments within ``WEDGE`` of it do (the blind wedge
+    outside a convex master corner: the closest master point is the corner node itself,
+    whose gap the callers measure along the averaged normal).
+
+    With ``previous`` (segment chosen per slave node before, −1 for none) a node keeps its
+    segment while it projects within [−tol, 1 + tol] of it: at a master node the two
+    adjacent segments tie, their normals differ, and a choice that flips with round-off
+    between Newton iterations makes the residual jump (Newton then cycles)."""
+    P = curve.split_points(curve.local_points(segs, master_x))
+    xj = (slave_x[nodes, 0], slave_x[nodes, 1])
+    g, xi = curve.gap(segs, xj, P)
+    g, xi = ad.value(g), ad.value(xi)
+    ok = (xi >= 0.0) & (xi <= 1.0)
+    kept = np.zeros_like(ok)
+    if previous is not None:
+        kept = (previous[nodes] == segs) & (xi >= -STICKY_TOL) & (xi <= 1.0 + STICKY_TOL)
+    # blind wedge outside a convex master corner: no segment qualifies, the closest master
+    # point is the corner node itself (its gap is measured along the averaged normal)
+    regular = np.zeros(int(nodes.max(initial=-1)) + 1, dtype=bool)
+    regular[nodes[ok | kept]] = True
+    wedge = ~regular[nodes] & (xi >= -WEDGE) & (xi <= 1.0 + WEDGE)
+    ok |= kept | wedge
+    nodes, segs, g, kept = nodes[ok], segs[ok], g[ok], kept[ok]
+    order = np.lexsort((np.abs(g), ~kept, nodes))
+    nodes, segs = nodes[order], segs[order]
+    first = np.ones(nodes.shape[0], dtype=bool)
+    first[1:] = nodes[1:] != nodes[:-1]
+    return nodes[first], segs[first]
+
+
 class ClosestPoint(NamedTuple):
     seg: np.ndarray        # (n,) segment of the projection
     xi: np.ndarray         # (n,) ξ ∈ [0, 1] on it

@@ -1,4 +1,4 @@
-"""Contact surfaces: the oriented chain(s) of boundary facets of named curve groups.
+"""Contact surfaces: the oriented chain(s) of the boundary facets with given meshtag values.
 
 Surfaces are 1D and small, so every rank holds the whole surface (gathered once): reference
 coordinates, global dof numbers, and segments oriented so that n = e₃ × t points out of the
@@ -6,14 +6,13 @@ body (DESIGN.md §3). Current coordinates are gathered again at every Newton ite
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Sequence
 
 import numpy as np
 from mpi4py import MPI
 
 from .. import _dolfinx as dx
-from ..meshing import Domain
-from ..scene import SceneError
 
 
 @dataclass
@@ -23,14 +22,26 @@ class Surface:
     dofs: np.ndarray       # (n, 2) global dof numbers of (u_x, u_y)
     seg: np.ndarray        # (n_seg, 2) node indices; e₃ × (x_b − x_a) points outward
     seg_owner: np.ndarray  # (n_seg,) rank owning the facet (computes its contributions)
-    body_tag: int          # cell tag of the body the surface bounds
+    body_tag: int          # cell tag of the body the surface bounds (−1: no cell tags)
     _mine: np.ndarray      # surface indices of the nodes whose dofs this rank owns
     _mine_local: np.ndarray  # their local (unrolled) dof indices, (k, 2)
     comm: MPI.Comm
+    owned: np.ndarray = field(init=False)  # (n,) True for the nodes whose dofs this rank owns
+
+    def __post_init__(self):
+        self.owned = np.zeros(self.n, dtype=bool)
+        self.owned[self._mine] = True
 
     @property
     def n(self) -> int:
         return len(self.X)
+
+    def owned_sum(self, values: np.ndarray) -> np.ndarray:
+        """Every rank gets each node's value from the rank that owns the node (the others'
+        partial sums at a partition boundary are dropped)."""
+        if self.comm.size == 1:
+            return values
+        return self.comm.allreduce(np.where(self.owned, values, 0.0), op=MPI.SUM)
 
     def displacement(self, u) -> np.ndarray:
         """(n, 2) current nodal displacement, gathered from the owning ranks."""
@@ -52,31 +63,39 @@ class Surface:
             s[b] = s[a] + np.hypot(*(x[b] - x[a]))
         return s
 
+    def mean_length(self) -> float:
+        """Mean segment length in the reference configuration."""
+        return float(np.mean(np.linalg.norm(self.X[self.seg[:, 1]] - self.X[self.seg[:, 0]],
+                                            axis=1)))
 
-def build_surface(dom: Domain, groups: str | list[str], name: str) -> Surface:
-    """Gather the facets of ``groups`` from all ranks and order them into oriented chains."""
-    msh = dom.mesh
+
+def build_surface(V, facet_tags, values: int | Sequence[int], name: str,
+                  cell_tags=None) -> Surface:
+    """The facets of ``facet_tags`` with the given tag value(s), gathered from all ranks and
+    ordered into oriented chains; ``V`` the (P1 vector) displacement space; with
+    ``cell_tags`` the surface must bound cells of one tag (one body)."""
+    msh = V.mesh
     comm = msh.comm
-    V = dx.vector_space(msh)
-    facets = dom.facets(groups)
-    n_owned_facets = msh.topology.index_map(1).size_local
-    facets = facets[facets < n_owned_facets]
+    values = np.atleast_1d(np.asarray(values))
+    facets = np.sort(facet_tags.indices[np.isin(facet_tags.values, values)])
+    facets = facets[facets < dx.num_owned_facets(msh)]
     f2v = dx.facet_vertices(msh)
     f2c = dx.facet_cells(msh)
     v2g = dx.vertex_to_geometry_node(msh)
-    x = msh.geometry.x[:, :2]
-    cells = msh.geometry.dofmap
+    x = dx.node_coordinates(msh)
+    cells = dx.cell_nodes(msh)
     l2g = dx.local_to_global_dofs(V)
-    n_owned_dofs = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
+    n_owned_dofs = dx.owned_dof_count(V)
 
     cell_tag = np.full(len(cells), -1, dtype=np.int64)
-    cell_tag[dom.cell_tags.indices] = dom.cell_tags.values
+    if cell_tags is not None:
+        cell_tag[cell_tags.indices] = cell_tags.values
     rows, tags = [], []
     for f in facets:
         v = f2v.links(f)
         p = x[v2g[v]]
         c = f2c.links(f)[0]
-        centroid = x[cells.links(c)].mean(axis=0)
+        centroid = x[cells[c]].mean(axis=0)
         t = p[1] - p[0]
         if np.dot(0.5 * (p[0] + p[1]) - centroid, [-t[1], t[0]]) < 0:
             v, p = v[::-1], p[::-1]  # orient so that e₃ × t points out of the body
@@ -85,9 +104,11 @@ def build_surface(dom: Domain, groups: str | list[str], name: str) -> Surface:
         tags.append(int(cell_tag[c]))
     gathered = comm.allgather(rows)
     tags = [t for part in comm.allgather(tags) for t in part]
+    if not tags:
+        raise ValueError(f"contact surface {name}: no facets with tag(s) {values.tolist()}")
     if len(set(tags)) != 1:
-        raise SceneError(f"contact surface {name} ({groups}) must bound exactly one body; "
-                         f"its facets touch cells of {len(set(tags))} bodies")
+        raise ValueError(f"contact surface {name} must bound exactly one body; its facets "
+                         f"touch cells of {len(set(tags))} bodies")
 
     key_index: dict[int, int] = {}
     X, dofs, seg, owner = [], [], [], []

@@ -72,7 +72,7 @@ def test_deferred_hessians(config, smoothing):
     weight = np.where(rng.uniform(size=ns) < 0.3, rng.uniform(0.5, 2.0, ns), 0.0)
     results = []
     for block in (2048, 5):
-        gap, area, _, _ = mortar.weighted_gaps(xs, ss, xm, sm, curve, pairs, 3, block=block)
+        gap, area = mortar.weighted_gaps(xs, ss, xm, sm, curve, pairs, 3, block=block)
         deferred = gap._hess if gap.test is None else gap.test._jac
         trip = _hessian_triplets if gap.test is None else _test_jacobian_triplets
         r, c, val = trip(gap, weight, ns)

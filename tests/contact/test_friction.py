@@ -20,7 +20,7 @@ def test_sliding_block_carries_mu_times_normal_force(method):
     assert result.converged, result.message
     last = result.steps[-1]
     c = last["contact"]["interface"]
-    d = result.hooks[0].interface()
+    d = result.pairs[0].interface()
     on = d["pressure"] > 0
     assert on.sum() >= 5 and np.all(d["status"][on] == "slip")
     # every slipping node sits on the cone: |t_T| = μ p
@@ -45,7 +45,7 @@ def test_stuck_block_carries_the_applied_force():
     c = result.steps[-1]["contact"]["interface"]
     fx = c["force_on_slave"][0] + c["tangential_force_on_slave"][0]
     assert -fx == pytest.approx(applied, rel=1e-8)
-    d = result.hooks[0].interface()
+    d = result.pairs[0].interface()
     on = d["pressure"] > 0
     assert np.mean(d["status"][on] == "stick") > 0.5
 

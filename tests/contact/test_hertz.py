@@ -52,7 +52,7 @@ def test_dependence_on_penalty_parameter(kind):
     p = []
     for eps in (3e3, 3e4):
         scene_eps = hertz(demo.a / 4, eps, kind)
-        p.append(scene_eps.hooks[0].interface()["pressure"])
+        p.append(scene_eps.pairs[0].interface()["pressure"])
     change = np.abs(p[0] - p[1]).max() / p[1].max()
     if kind == "alm":
         assert change <= 1e-6

@@ -51,9 +51,11 @@ def closed_master(seed=6):
 
 
 def _mortar(xs, ss, xm, sm, n_gauss=2):
+    """(gap, area, D, M) on the polyline master."""
     curve = Polyline(xm, sm)
     pairs = candidate_pairs(xs, ss, xm, sm, 0.3)
-    return mortar.weighted_gaps(xs, ss, xm, sm, curve, pairs, n_gauss)
+    return (*mortar.weighted_gaps(xs, ss, xm, sm, curve, pairs, n_gauss),
+            *mortar.mortar_matrices(xs, ss, xm, curve, pairs, n_gauss))
 
 
 def _assemble(contrib, ns, nm, weights):
@@ -239,7 +241,7 @@ def test_vectorized_cost_scales_linearly():
             t0 = time.perf_counter()
             curve = Polyline(xm, sm)
             pairs = candidate_pairs(xs, ss, xm, sm, 1.0 / N)
-            gap, _, _, _ = mortar.weighted_gaps(xs, ss, xm, sm, curve, pairs)
+            gap, _ = mortar.weighted_gaps(xs, ss, xm, sm, curve, pairs)
             best = min(best, time.perf_counter() - t0)
         assert gap.size > N
         return best
@@ -251,7 +253,8 @@ def test_vectorized_cost_scales_linearly():
 
 
 # ---------------------------------------------------------------- smoothed master curves
-from fenicsx_mortar.contact.curves import SMOOTHINGS, make_curve  # noqa: E402
+from fenicsx_mortar.contact.curves import make_curve
+from fenicsx_mortar.contact.registry import SMOOTHINGS  # noqa: E402
 
 
 def to_node_space(g, H, ns, point_map):
@@ -304,7 +307,7 @@ def smoothed_taylor_check(kernel_of_curve, xs, ss, xm, sm, smoothing, seed=0):
     return len(nodes[0])
 
 
-@pytest.mark.parametrize("smoothing", SMOOTHINGS)
+@pytest.mark.parametrize("smoothing", SMOOTHINGS.names())
 @pytest.mark.parametrize("config", [curved_open, closed_master])
 def test_taylor_smoothed_master(config, smoothing):
     xs, ss, xm, sm = config()
@@ -344,7 +347,7 @@ def test_bspline_rebuilt_parametrization_is_first_order():
     assert np.all(np.abs(_rates(hs, np.array(rebuilt)) - 1.0) < 0.1)
 
 
-@pytest.mark.parametrize("smoothing", SMOOTHINGS)
+@pytest.mark.parametrize("smoothing", SMOOTHINGS.names())
 @pytest.mark.parametrize("slave_from,slave_to", OVERLAPS)
 def test_flat_patch_property_with_smoothing(smoothing, slave_from, slave_to):
     # straight master: every smoothing reproduces the straight line, so g̃ = δA exactly,
@@ -353,14 +356,14 @@ def test_flat_patch_property_with_smoothing(smoothing, slave_from, slave_to):
     xs, ss, xm, sm = flat(delta, slave_from, slave_to)
     curve = make_curve(smoothing, xm, sm)
     pairs = candidate_pairs(xs, ss, xm, sm, 0.3)
-    gap, area, _, _ = mortar.weighted_gaps(xs, ss, xm, sm, curve, pairs)
+    gap, area = mortar.weighted_gaps(xs, ss, xm, sm, curve, pairs)
     G, A = nodal_sum(gap, len(xs)), nodal_sum(area, len(xs))
     overlap = min(slave_from, 4.0) - max(slave_to, 0.0)
     assert np.allclose(G, delta * A, rtol=0, atol=1e-13)
     assert abs(A.sum() - overlap) < 1e-13
 
     xs, ss, xm, sm = flat(0.0, slave_from, slave_to)
-    gap, _, _, _ = mortar.weighted_gaps(xs, ss, xm, sm, curve, pairs)
+    gap, _ = mortar.weighted_gaps(xs, ss, xm, sm, curve, pairs)
     ns, nm = len(xs), len(xm)
     npts = nm if curve.point_map is None else curve.point_map.shape[0]
     _, f, _ = _assemble(gap, ns, npts, np.full(ns, p))

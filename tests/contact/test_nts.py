@@ -187,11 +187,12 @@ def test_nts_fails_the_patch_test():
 
 
 # ---------------------------------------------------------------- smoothed master curves
-from fenicsx_mortar.contact.curves import SMOOTHINGS, make_curve  # noqa: E402
+from fenicsx_mortar.contact.curves import make_curve
+from fenicsx_mortar.contact.registry import SMOOTHINGS  # noqa: E402
 from test_mortar import smoothed_taylor_check  # noqa: E402
 
 
-@pytest.mark.parametrize("smoothing", SMOOTHINGS)
+@pytest.mark.parametrize("smoothing", SMOOTHINGS.names())
 @pytest.mark.parametrize("config", [curved_open, closed_master])
 def test_taylor_smoothed_master(config, smoothing):
     xs, ss, xm, sm = config()
@@ -201,7 +202,7 @@ def test_taylor_smoothed_master(config, smoothing):
     assert smoothed_taylor_check(kernel, xs, ss, xm, sm, smoothing) > 5
 
 
-@pytest.mark.parametrize("smoothing", SMOOTHINGS)
+@pytest.mark.parametrize("smoothing", SMOOTHINGS.names())
 def test_flat_point_gap_with_smoothing(smoothing):
     delta = 0.037
     xs, ss, xm, sm = flat(delta, slave_from=4.6, slave_to=0.6)

@@ -6,14 +6,13 @@ import numpy as np
 import pytest
 
 from conftest import ROOT
+from fenicsx_mortar import _dolfinx as dx
 from fenicsx_mortar import load_scene
 from fenicsx_mortar.bulk import build_bulk
-from fenicsx_mortar.contact.pair import build_contact
+from fenicsx_mortar.contact.registry import SMOOTHINGS
 from fenicsx_mortar.meshing import build_domain
-from fenicsx_mortar.solver import NewtonSolver, Timings
-
-SMOOTHINGS = ["none", "averaged-simple", "averaged-weighted", "averaged-tangent", "hermite",
-              "bspline"]
+from fenicsx_mortar.problem import ContactProblem
+from fenicsx_mortar.run import scene_pairs
 
 
 def system(method: str, enforcement: str, mu: float = 0.0, smoothing: str = "none"):
@@ -26,18 +25,20 @@ def system(method: str, enforcement: str, mu: float = 0.0, smoothing: str = "non
         c.friction.law, c.friction.mu = "coulomb", mu
     dom = build_domain(scene)
     bulk = build_bulk(scene, dom)
-    timings = Timings()
-    hooks, A = build_contact(scene, dom, bulk, timings)
-    solver = NewtonSolver(bulk, scene.solver, hooks, timings, A)
+    pairs = scene_pairs(scene, dom, bulk.V)
+    problem = ContactProblem(bulk.residual, bulk.u, bulk.bcs, pairs, bulk.jacobian,
+                             settings=scene.solver)
     bulk.set_time(1.0)
-    return solver, hooks[0]
+    solver = problem.solver
+    solver.domain = dom  # for upper_block_state
+    return solver, pairs[0]
 
 
 def upper_block_state(solver, shift: float, rng) -> np.ndarray:
     """Upper block moved by (shift, −2e-3) plus 1e-5 noise; Dirichlet dofs at zero."""
-    X = solver.bulk.V.tabulate_dof_coordinates()[:, :2]
-    V, dom = solver.bulk.V, solver.bulk.domain
-    upper = np.unique(V.dofmap.list.array.reshape(-1, V.dofmap.dof_layout.num_dofs)[dom.cells("upper")])
+    V, dom = solver.u.function_space, solver.domain
+    X = dx.dof_coordinates(V)
+    upper = np.unique(dx.cell_dofs(V)[dom.cells("upper")])
     state = np.zeros((len(X), 2))
     state[upper] = (shift, -2e-3)
     state += 1e-5 * rng.standard_normal(state.shape)
@@ -54,7 +55,9 @@ def taylor_remainders(solver, hook, rng, check):
     solver._residual(None, x, b)
     R0 = b.array.copy()
     check(hook.state)
-    frozen = {k: hook.state[k].copy() for k in ("active", "status") if k in hook.state}
+    frozen = {"active": hook.state.active.copy()}
+    if hook.state.tangential is not None:
+        frozen["status"] = hook.state.tangential.status.copy()
     hook._first_jacobian = False
     solver._jacobian(None, x, solver.A, solver.A)
     d = x.duplicate()
@@ -68,13 +71,15 @@ def taylor_remainders(solver, hook, rng, check):
         xh = x.copy()
         xh.axpy(h, d)
         solver._residual(None, xh, b)
-        for k, v in frozen.items():  # no switch of the active set or stick/slip state
-            assert np.array_equal(hook.state[k], v)
+        # no switch of the active set or stick/slip state
+        assert np.array_equal(hook.state.active, frozen["active"])
+        if "status" in frozen:
+            assert np.array_equal(hook.state.tangential.status, frozen["status"])
         rem.append(np.linalg.norm(b.array - R0 - h * Kd.array))
     return hs, np.array(rem)
 
 
-@pytest.mark.parametrize("smoothing", SMOOTHINGS)
+@pytest.mark.parametrize("smoothing", SMOOTHINGS.names())
 @pytest.mark.parametrize("enforcement", ["penalty", "alm"])
 @pytest.mark.parametrize("method", ["mortar", "nts"])
 def test_taylor_remainder_is_second_order(method, enforcement, smoothing):
@@ -86,7 +91,7 @@ def test_taylor_remainder_is_second_order(method, enforcement, smoothing):
     if enforcement == "alm":  # a non-zero multiplier, as after an augmentation
         hook.enforcement.multiplier[:] = rng.uniform(0.5, 1.5, hook.slave.n)
     hs, rem = taylor_remainders(solver, hook, rng,
-                                lambda st: st["active"].sum() >= 5 or pytest.fail("few active"))
+                                lambda st: st.active.sum() >= 5 or pytest.fail("few active"))
     rates = np.diff(np.log(rem)) / np.diff(np.log(hs))
     assert np.all(rates > 1.8), (rem, rates)
 
@@ -106,8 +111,8 @@ def test_taylor_remainder_with_friction(method, state):
     want = 1 if state == "stick" else 2
 
     def check(st):
-        on = st["active"]
-        assert on.sum() >= 5 and np.all(st["status"][on] == want)
+        on = st.active
+        assert on.sum() >= 5 and np.all(st.tangential.status[on] == want)
 
     hs, rem = taylor_remainders(solver, hook, rng, check)
     rates = np.diff(np.log(rem)) / np.diff(np.log(hs))

@@ -6,7 +6,8 @@ import pytest
 
 from fenicsx_mortar.contact import projection
 from fenicsx_mortar.contact.ad import Jet2
-from fenicsx_mortar.contact.curves import SMOOTHINGS, make_curve
+from fenicsx_mortar.contact.curves import make_curve
+from fenicsx_mortar.contact.registry import SMOOTHINGS
 
 from test_curves import irregular_circle, wavy_open
 
@@ -140,7 +141,7 @@ def _rates(h, r):
     return np.log(r[:-1] / r[1:]) / np.log(h[:-1] / h[1:])
 
 
-@pytest.mark.parametrize("smoothing", SMOOTHINGS)
+@pytest.mark.parametrize("smoothing", SMOOTHINGS.names())
 def test_projected_xi_has_exact_derivatives(smoothing):
     # ξ̄(x_s, P) from the float Newton + two chord steps in jet arithmetic: Taylor test
     # of value and gradient over all local coordinates (second-order remainders)
@@ -193,7 +194,7 @@ def test_failures_are_reported():
     assert st[0] == projection.ABOVE and xi[0] == projection.WINDOW[1]
 
 
-@pytest.mark.parametrize("smoothing", SMOOTHINGS)
+@pytest.mark.parametrize("smoothing", SMOOTHINGS.names())
 @pytest.mark.parametrize("shape", [lambda: irregular_circle()[0], wavy_open],
                          ids=["closed", "open"])
 def test_condition_polynomial_is_the_condition(smoothing, shape):

@@ -10,8 +10,9 @@ import functools
 
 from _common import HARD, Run, run_scene
 
-SMOOTHINGS = ("none", "averaged-simple", "averaged-weighted", "averaged-tangent", "hermite",
-              "bspline")
+from fenicsx_mortar.contact.registry import SMOOTHINGS as _REGISTRY
+
+SMOOTHINGS = _REGISTRY.names()
 
 RUNS = {
     "1 grazing": "c01_grazing_approach.toml",

@@ -92,11 +92,11 @@ def run_scene(scene_or_path, name: str | None = None, log: Callable[[str], None]
     run = Run(name or scene.title, None, 0.0)
 
     def on_step(record, state):
-        for h in state.hooks:
+        for h in state.pairs:
             d = {k: np.array(v, copy=True) for k, v in h.interface().items()}
             run.interfaces.append(d)
             run.osc_per_step.append(oscillation(d))
-            _check_finite(run, f"step {record['step']} {h.pair.name}", d)
+            _check_finite(run, f"step {record['step']} {h.name}", d)
         _check_finite(run, f"step {record['step']} record", record)
 
     t0 = time.perf_counter()

@@ -61,13 +61,12 @@ def test_case01_grazing_approach_pressure_single_humped():
 
 def _pair_warnings(scene) -> list[str]:
     from fenicsx_mortar.bulk import build_bulk
-    from fenicsx_mortar.contact.pair import build_contact
     from fenicsx_mortar.meshing import build_domain
-    from fenicsx_mortar.solver import Timings
+    from fenicsx_mortar.run import scene_pairs
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         dom = build_domain(scene)
-        build_contact(scene, dom, build_bulk(scene, dom), Timings())
+        scene_pairs(scene, dom, build_bulk(scene, dom).V)
     return [str(w.message) for w in caught]
 
 
@@ -257,12 +256,12 @@ def test_case10_active_set_cycling_is_detected(monkeypatch):
     monkeypatch.setattr(enforcement.Penalty, "begin_step",
                         lambda self: self.epsilon.fill(self.epsilon0))
     sets: list[tuple] = []
-    original = pair.PairHook.update
+    original = pair.ContactPair.update
 
     def update(self, u):
         original(self, u)
-        sets.append(tuple(np.flatnonzero(self.state["active"])))
-    monkeypatch.setattr(pair.PairHook, "update", update)
+        sets.append(tuple(np.flatnonzero(self.state.active)))
+    monkeypatch.setattr(pair.ContactPair, "update", update)
     log: list[str] = []
     run = run_scene(HARD / "c10_active_set_cycling.toml", name="10 no continuation",
                     log=log.append)

@@ -1,0 +1,87 @@
+"""Contact discretizations: from the current slave and master coordinates to the nodal
+weighted gaps g̃_j and areas A_j of the slave nodes, with exact derivatives (DESIGN.md §4).
+One class per method, registered under its scene name.
+
+* :class:`Mortar`: segment-to-segment integrals (:mod:`.mortar`), with the boundary
+  hand-over of slave nodes sliding off the master's end (:mod:`.boundary`);
+* :class:`NodeToSegment`: the classical baseline (:mod:`.nts`), which remembers each slave
+  node's master segment between iterates.
+
+Both return per-contribution values (:class:`~.kernel.NodalContributions`) and the nodal
+sums, taken from the rank that owns each node (``surface.owned_sum``).
+"""
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from . import boundary, mortar, nts
+from .curves import MasterCurve
+from .kernel import NodalContributions, nodal_sum
+from .registry import METHODS
+
+if TYPE_CHECKING:
+    from .surface import Surface
+
+
+class Discretization:
+    """Base: one pair's slave and master surfaces and the method's own settings."""
+
+    name = ""
+
+    def __init__(self, slave: Surface, master: Surface, n_gauss: int | None = None):
+        self.slave, self.master = slave, master
+        self.n_gauss = n_gauss
+
+    def weighted_gaps(self, xs: np.ndarray, xm: np.ndarray, curve: MasterCurve, pairs
+                      ) -> tuple[NodalContributions, NodalContributions, np.ndarray, np.ndarray]:
+        """(gap contributions, area contributions, g̃, A) at the current coordinates for
+        the candidate ``pairs`` (slave segment, master segment) of this rank."""
+        raise NotImplementedError
+
+    def state_dict(self) -> dict[str, np.ndarray]:
+        """Per-node history (merged from the owning ranks by the pair)."""
+        return {}
+
+    def load_state_dict(self, d: dict[str, np.ndarray]) -> None:
+        pass
+
+
+@METHODS.register("mortar")
+class Mortar(Discretization):
+    """g̃_j = ∫ N_j g dΓ, A_j = ∫ N_j dΓ over the slave segments (DESIGN.md §4)."""
+
+    def weighted_gaps(self, xs, xm, curve, pairs):
+        s, m = self.slave, self.master
+        gap, area = mortar.weighted_gaps(xs, s.seg, xm, m.seg, curve, pairs,
+                                         self.n_gauss or curve.gauss_points)
+        A = s.owned_sum(nodal_sum(area, s.n))
+        # slave nodes barely supported by the master (sliding off its end) hand their
+        # terms to their supported neighbour (boundary.py)
+        weak = boundary.unsupported(A, boundary.full_areas(xs, s.seg, s.n))
+        if weak.any():
+            gap, area = boundary.hand_over(gap, weak), boundary.hand_over(area, weak)
+            A = s.owned_sum(nodal_sum(area, s.n))
+        return gap, area, s.owned_sum(nodal_sum(gap, s.n)), A
+
+
+@METHODS.register("nts")
+class NodeToSegment(Discretization):
+    """g̃_j = A_j g_j at the slave node's projection (DESIGN.md §1, §3)."""
+
+    def __init__(self, slave: Surface, master: Surface, n_gauss: int | None = None):
+        super().__init__(slave, master, n_gauss)
+        #: the master segment each slave node projected onto last (−1: none)
+        self.segment = np.full(slave.n, -1, dtype=np.int64)
+
+    def weighted_gaps(self, xs, xm, curve, pairs):
+        s, m = self.slave, self.master
+        gap, area = nts.node_gaps(xs, s.seg, xm, m.seg, curve, pairs, self.segment)
+        return gap, area, s.owned_sum(nodal_sum(gap, s.n)), s.owned_sum(nodal_sum(area, s.n))
+
+    def state_dict(self):
+        return {"nts_segment": self.segment}
+
+    def load_state_dict(self, d):
+        self.segment = np.array(d["nts_segment"], dtype=np.int64)
