@@ -1,4 +1,4 @@
-"""Gap accuracy of the master-surface smoothings (DESIGN.md §6; issue: smoothed master
+"""Gap accuracy of the master-surface smoothings (docs/design.md §6; issue: smoothed master
 surfaces). Regenerates docs/smoothing.md and docs/smoothing_gap_error.png.
 
 A circle of radius R is the exact master surface; the discrete master is the closed

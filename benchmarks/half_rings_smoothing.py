@@ -5,7 +5,7 @@ smooth the hub reaction curve comes out.
     .venv/bin/python benchmarks/half_rings_smoothing.py --only hermite,bspline
     .venv/bin/python benchmarks/half_rings_smoothing.py --redraw     # table + plot from the CSV
 
-Problem (BENCHMARKS.md B3, scene ``demos/scenes/half_rings.toml``, the set-up is ours): a
+Problem (docs/benchmarks.md B3, scene ``demos/scenes/half_rings.toml``, the set-up is ours): a
 moving half ring (R_i = 8, R_e = 10, 4 × 60 quads; slave: its outer arc) inside a fixed half
 ring (R_i = 10, R_e = 12, 4 × 32, clamped cut ends; master: its inner arc), Neo-Hooke
 E = 689.56, ν = 0.32, mortar + ALM. The moving ring's inner arc is driven as a rigid hub:
@@ -17,7 +17,7 @@ averaged-simple, averaged-weighted, averaged-tangent, hermite, bspline; docs/smo
 plus one frictionless run with the polyline as a reference line. The scene's step control
 (halve a failed increment, at most 8 cuts in a row) is used unchanged.
 
-Reaction curve (BENCHMARKS.md B3 "Outputs"): the force the hub exerts on the moving ring,
+Reaction curve (docs/benchmarks.md B3 "Outputs"): the force the hub exerts on the moving ring,
 R = (R_x, R_y), and its moment M about the origin, against the load parameter. The issue
 asks for the oscillation of F_x = R_x; R_y and M are measured the same way.
 

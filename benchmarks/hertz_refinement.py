@@ -1,4 +1,4 @@
-"""Hertz benchmark (BENCHMARKS.md B2) under mesh refinement: accuracy and cost.
+"""Hertz benchmark (docs/benchmarks.md B2) under mesh refinement: accuracy and cost.
 
 What it measures
     The scene ``demos/scenes/hertz.toml`` (half-disk R = 1 on the block [-1, 1] x [-1, 0],
@@ -203,7 +203,7 @@ def write_doc(runs: list[dict], controls: list[dict], total_seconds: float,
 
 ## Set-up
 
-Scene `demos/scenes/hertz.toml` (BENCHMARKS.md B2): a half-disk of radius R = 1 (slave
+Scene `demos/scenes/hertz.toml` (docs/benchmarks.md B2): a half-disk of radius R = 1 (slave
 surface: its arc) is pressed onto the block [−1, 1] × [−1, 0] (master: its top) by a dead
 traction 0.5 on its flat edge, total force F = 1 per unit thickness. Both bodies Neo-Hooke,
 E = 1000, ν = 0.3, plane strain, quadrilateral meshes. Block bottom u_y = 0, u_x = 0 at

@@ -1,7 +1,7 @@
 """Two half-rings (B3, the paper's Fig. 33): a pressed ring turned inside a fixed one, with
 Coulomb friction — large sliding along a curved master.
 
-Problem (scene ``demos/scenes/half_rings.toml``; the set-up is ours, BENCHMARKS.md B3): the
+Problem (scene ``demos/scenes/half_rings.toml``; the set-up is ours, docs/benchmarks.md B3): the
 fixed ring is the lower half annulus R_i = 10, R_e = 12 with clamped cut ends (master: its
 inner arc); the moving ring is the lower half annulus R_i = 8, R_e = 10 (slave: its outer
 arc); both Neo-Hooke, E = 689.56, ν = 0.32. The moving ring's inner arc is driven as a rigid

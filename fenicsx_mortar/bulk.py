@@ -1,7 +1,7 @@
 """Bodies → UFL residual and Jacobian (total Lagrangian, plane strain), loads, supports.
 
 G(u; δu) = Σ_bodies ∫ P(F) : ∇δu dX + ∫ p J F⁻ᵀN · δu dS (follower pressure)
-           + ∫ p N · δu dS (dead pressure) − ∫ t₀ · δu dS (dead traction).   DESIGN.md §2.
+           + ∫ p N · δu dS (dead pressure) − ∫ t₀ · δu dS (dead traction).   docs/design.md §2.
 """
 from __future__ import annotations
 

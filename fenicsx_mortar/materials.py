@@ -1,4 +1,4 @@
-"""Plane-strain constitutive laws in UFL (DESIGN.md §2). One class per law.
+"""Plane-strain constitutive laws in UFL (docs/design.md §2). One class per law.
 
 Total Lagrangian: each law gives the first Piola–Kirchhoff stress P(F) for the residual
 ∫ P : ∇δu dX and the Cauchy stress σ = J⁻¹ P Fᵀ for output. The out-of-plane stretch is 1.

@@ -1,14 +1,15 @@
-"""gmsh model (a generator from ``meshes/`` or a ``.msh`` file) → DOLFINx mesh + named tags."""
+"""gmsh model (a generator from :mod:`fenicsx_mortar.meshes` or a ``.msh`` file) → DOLFINx
+mesh + named tags."""
 from __future__ import annotations
 
-import importlib.util
+import importlib
 from dataclasses import dataclass
 
 import numpy as np
 from mpi4py import MPI
 
 from . import _dolfinx as dx
-from .scene import MESH_DIR, Scene, SceneError
+from .scene import Scene, SceneError
 
 
 @dataclass
@@ -31,12 +32,8 @@ class Domain:
 
 
 def load_generator(name: str):
-    """The module ``meshes/<name>.py`` (a plain file: generators are not a package)."""
-    path = MESH_DIR / f"{name}.py"
-    spec = importlib.util.spec_from_file_location(f"fenicsx_mortar_meshes_{name}", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    """The generator module ``fenicsx_mortar.meshes.<name>``."""
+    return importlib.import_module(f"fenicsx_mortar.meshes.{name}")
 
 
 def _build_model(scene: Scene):

@@ -14,7 +14,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal, Union
 
-MESH_DIR = Path(__file__).resolve().parents[1] / "meshes"
+
+
+def generators() -> list[str]:
+    """The mesh generators shipped in :mod:`fenicsx_mortar.meshes` (the ``meshes/`` folder
+    of the source tree)."""
+    from importlib import resources
+    return sorted(p.name[:-3] for p in resources.files("fenicsx_mortar.meshes").iterdir()
+                  if p.name.endswith(".py") and not p.name.startswith("_"))
 
 
 class SceneError(ValueError):
@@ -26,7 +33,8 @@ class SceneError(ValueError):
 
 @dataclass
 class MeshSource:
-    """Where the mesh comes from: a generator ``meshes/<generator>.py`` or a gmsh ``file``."""
+    """Where the mesh comes from: a generator (``fenicsx_mortar.meshes.<generator>``, the
+    source tree's ``meshes/<generator>.py``) or a gmsh ``file``."""
     generator: str | None = None
     file: str | None = None
     cell: Literal["quadrilateral", "triangle"] = "quadrilateral"
@@ -35,7 +43,7 @@ class MeshSource:
 
 @dataclass
 class Material:
-    """Hyperelastic (or linear) material, plane strain. DESIGN.md §2."""
+    """Hyperelastic (or linear) material, plane strain. docs/design.md §2."""
     model: Literal["neo-hooke", "svk", "linear"]
     E: float
     nu: float
@@ -135,7 +143,7 @@ class Traction:
 @dataclass
 class Enforcement:
     """Normal-contact enforcement: a registered name (``ENFORCEMENTS``: penalty, alm, …).
-    DESIGN.md §5."""
+    docs/design.md §5."""
     type: str = "alm"
     epsilon: float | None = None  # default E/h (slave body); ALM starts at min(epsilon, E/h)
     tolerance: float = 1e-10      # ALM: KKT residual (relative to the pressure scale)
@@ -251,8 +259,8 @@ class Scene:
         ms = self.mesh
         if (ms.generator is None) == (ms.file is None):
             raise SceneError("mesh: give exactly one of 'generator' or 'file'")
-        if ms.generator is not None and not (MESH_DIR / f"{ms.generator}.py").is_file():
-            known = sorted(p.stem for p in MESH_DIR.glob("*.py"))
+        if ms.generator is not None and ms.generator not in generators():
+            known = generators()
             raise SceneError(f"mesh.generator = {ms.generator!r}: no such generator "
                              f"(known: {', '.join(known)})")
         if ms.file is not None and not self.mesh_file().is_file():

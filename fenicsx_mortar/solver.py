@@ -4,7 +4,7 @@ A Newton solve counts as converged only when the residual norm is below ``atol``
 ``rtol`` times the reference residual — the largest first residual of a load step seen so
 far, so that a cut (small) increment does not make the relative test unreachable — (or that
 reference was already below ``atol``): a huge first residual makes a relative decrease
-alone meaningless (DESIGN.md §5). A load step is converged when, after such a solve, no
+alone meaningless (docs/design.md §5). A load step is converged when, after such a solve, no
 hook asks for another one (``augment``: the ALM's KKT residual is below its tolerance,
 the penalty's ε has reached its target). The active sets are watched for cycles
 (:class:`ActiveSetMonitor`).

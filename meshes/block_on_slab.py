@@ -11,7 +11,7 @@ _SIDES = ("bottom", "right", "top", "left")
 
 def build(model, *, cell: str = "quadrilateral", block_nx: int = 10, block_ny: int = 5,
           slab_nx: int = 24, slab_ny: int = 8) -> None:
-    """Block [0, 1] x [1, 1.5] resting on slab [-1, 2] x [0, 1] (BENCHMARKS.md B5).
+    """Block [0, 1] x [1, 1.5] resting on slab [-1, 2] x [0, 1] (docs/benchmarks.md B5).
 
     Both are structured grids. They touch along y = 1, x in [0, 1], with separate
     (duplicated) nodes: the bodies share no node and the default meshes are non-matching

@@ -11,7 +11,7 @@ _CELLS = ("quadrilateral", "triangle")
 
 def build(model, *, cell: str = "quadrilateral", fixed_nr: int = 4, fixed_nc: int = 32,
           moving_nr: int = 4, moving_nc: int = 60) -> None:
-    """Lower half annuli (theta in [pi, 2*pi]) centred at the origin (BENCHMARKS.md B3).
+    """Lower half annuli (theta in [pi, 2*pi]) centred at the origin (docs/benchmarks.md B3).
 
     "fixed_ring":  R_i = 10, R_e = 12.   "moving_ring": R_i = 8, R_e = 10.
     They touch along r = 10 with separate (duplicated) nodes: the bodies share no node.

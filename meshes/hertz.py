@@ -9,7 +9,7 @@ _CELLS = ("quadrilateral", "triangle")
 def build(model, *, cell: str = "quadrilateral", h_contact: float = 0.05, h_far: float = 0.1,
           R: float = 1.0, refine_radius: float = 0.15) -> None:
     """Half-disk "disk" (lower half of the circle of radius R centred at (0, R), flat edge
-    y = R) on the block "block" [-1, 1] x [-1, 0] (BENCHMARKS.md B2). They touch at (0, 0)
+    y = R) on the block "block" [-1, 1] x [-1, 0] (docs/benchmarks.md B2). They touch at (0, 0)
     only; each body has its own node there (no shared node).
 
     Unstructured meshes driven by a size field: element size h_contact within distance

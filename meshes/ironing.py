@@ -14,7 +14,7 @@ _H = 1.0                        # height of the tool's rectangle [0.2, 2.2] x [5
 def build(model, *, cell: str = "quadrilateral", nx: int = 70, ny: int = 10,
           n_arc: int = 18) -> None:
     """Substrate [0, 12] x [0, 4] and tool = rectangle [0.2, 2.2] x [5.02, 6.02] on top of
-    the lower half-disk of radius 1 centred at (1.2, 5.02) (BENCHMARKS.md B4; initial gap
+    the lower half-disk of radius 1 centred at (1.2, 5.02) (docs/benchmarks.md B4; initial gap
     0.02 between the tool's lowest point (1.2, 4.02) and the substrate top y = 4).
 
     Both bodies are all-quadrilateral structured (transfinite) meshes, or each quad split

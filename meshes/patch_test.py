@@ -10,7 +10,7 @@ _CELLS = ("quadrilateral", "triangle")
 
 def build(model, *, cell: str = "quadrilateral", lower_nx: int = 16, lower_ny: int = 8,
           upper_nx: int = 20, upper_ny: int = 4) -> None:
-    """Lower block [0, 4] x [0, 2] and upper block [1, 3] x [2, 3] (BENCHMARKS.md B1).
+    """Lower block [0, 4] x [0, 2] and upper block [1, 3] x [2, 3] (docs/benchmarks.md B1).
 
     Both blocks are structured grids; they touch along y = 2, x in [1, 3], with separate
     (duplicated) nodes there, so the meshes are non-matching and share no node.

@@ -1,4 +1,4 @@
-"""Bulk physics against closed-form homogeneous plane-strain solutions (DESIGN.md §2).
+"""Bulk physics against closed-form homogeneous plane-strain solutions (docs/design.md §2).
 
 A unit block, u_y = 0 at the bottom, u_x = 0 on the left, a pressure p on the top, right edge
 free. The exact deformation is homogeneous, F = diag(λ₁, λ₂), which linear elements

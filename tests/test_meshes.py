@@ -1,7 +1,7 @@
 """Facts about the gmsh mesh generators in meshes/*.py (geometry, groups, cells, nodes)."""
 from __future__ import annotations
 
-import importlib.util
+import importlib
 import math
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -18,12 +18,8 @@ CELLS = tuple(GMSH_TYPE)
 
 
 def load(name: str):
-    """Import meshes/<name>.py by path, as the project's loader does."""
-    spec = importlib.util.spec_from_file_location(f"mesh_generator_{name}",
-                                                  REPO / "meshes" / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    """The generator module, as the project's loader imports it."""
+    return importlib.import_module(f"fenicsx_mortar.meshes.{name}")
 
 
 @contextmanager

@@ -2,7 +2,7 @@
 
 A :class:`Jet2` carries, for a batch of scalar functions f of the same m local variables,
 the value ``val (...)``, the gradient ``grad (..., m)`` and the Hessian ``hess (..., m, m)``.
-Arithmetic propagates them exactly (DESIGN.md §7: consistent tangents from forward-mode
+Arithmetic propagates them exactly (docs/design.md §7: consistent tangents from forward-mode
 differentiation of the local residual):
 
 * sum:      ∇(a+b) = ∇a + ∇b,                H(a+b) = H(a) + H(b)
@@ -647,15 +647,6 @@ def substitute(f: Jet2, inner: Sequence[Jet2], mix=None) -> Jet2:
             terms.append((_lift(z._h, 2, nd), pw[j], pw[j], coef))
     hess = _hessian(k, shape, terms) if terms else None
     return Jet2._raw(f.val, grad, hess, u, m)
-
-
-def stack_values(jets: Sequence[Jet2]):
-    """Concatenate value (K,), dense gradient (K, m) and Hessian (K, m, m) of jets with
-    equal m and one batch axis."""
-    val = np.concatenate([j.val for j in jets])
-    grad = np.concatenate([j.grad for j in jets])
-    hess = np.concatenate([j.hess for j in jets])
-    return val, grad, hess
 
 
 # ---------------------------------------------------------------------- 2D vectors

@@ -1,6 +1,6 @@
 """Contact terms → PETSc: nodal forces and the consistent tangent.
 
-With the weighted gaps g̃_j, nodal areas A_j and pressures p_j (DESIGN.md §4–5):
+With the weighted gaps g̃_j, nodal areas A_j and pressures p_j (docs/design.md §4–5):
 
     R  = −Σ_j p_j ∇g̃_j
     K  = Σ_j (ε/A_j) ∇g̃_j ⊗ ∇g̃_j − (ε g̃_j/A_j²) ∇g̃_j ⊗ ∇A_j  − p_j ∇²g̃_j   (active j)
@@ -288,7 +288,7 @@ def normal_force(st, weight: np.ndarray) -> np.ndarray:
 def normal_tangent(st, d1: np.ndarray, d2: np.ndarray, hw: np.ndarray) -> sp.spmatrix:
     """The tangent of :func:`normal_force` with weight = p w for a nodal law p(g̃, A):
     d1 = −∂p/∂g̃ w and d2 = ∂p/∂A w on the nodes whose law is differentiated (the active
-    ones), hw = p w (DESIGN.md §5)::
+    ones), hw = p w (docs/design.md §5)::
 
         K = Σ_j d1_j ∇g̃_j ⊗ ∇g̃_j − d2_j ∇g̃_j ⊗ ∇A_j − hw_j ∇²g̃_j
 

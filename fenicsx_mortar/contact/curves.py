@@ -1,4 +1,4 @@
-"""Master curve geometry (DESIGN.md §3, §6): the C0 polyline and the smoothed master
+"""Master curve geometry (docs/design.md §3, §6): the C0 polyline and the smoothed master
 surfaces of the paper's Section 3.
 
 A :class:`MasterCurve` maps (master segment i, ξ ∈ [0, 1]) to a point x(ξ) and its
@@ -143,7 +143,7 @@ class MasterCurve(abc.ABC):
         return _pick(at_d, xc, xd), _pick(at_d, tc, td)
 
     def normal(self, a: Vec2) -> Vec2:
-        """Outward unit normal n = e3 × a/|a| (DESIGN.md §3)."""
+        """Outward unit normal n = e3 × a/|a| (docs/design.md §3)."""
         return ad.unit(ad.perp(a))
 
     def normal_at(self, seg_index, xi: Scalar, P: Sequence[Vec2], a: Vec2 | None = None) -> Vec2:
@@ -302,7 +302,7 @@ class _NeighbourStencil(MasterCurve):
 class Polyline(_NeighbourStencil):
     """The C0 polyline: x(ξ) = (1−ξ) x_c + ξ x_d, a = x_d − x_c on segment (c, d).
 
-    The segmentation uses the averaged nodal tangent (DESIGN.md eq. 3.4)
+    The segmentation uses the averaged nodal tangent (docs/design.md eq. 3.4)
         t̄_c = t_{prev(c),c} + t_{c,d}   (unit segment tangents; only the direction matters),
     hence the stencil (prev(c), c, d, next(d)).
     """
@@ -355,7 +355,7 @@ def _normal_tangent(p, c, d):
 
 
 class AveragedNormals(_NeighbourStencil):
-    """Polyline geometry with averaged nodal normals (DESIGN.md §6.1–3, eqs. 3.2–3.4).
+    """Polyline geometry with averaged nodal normals (docs/design.md §6.1–3, eqs. 3.2–3.4).
 
     Nodal normal n̄ by ``variant``: "simple" (eq. 3.2, mean of the unit normals),
     "weighted" (eq. 3.3, weighted by segment length) or "tangent" (eq. 3.4, normal of the
@@ -367,7 +367,7 @@ class AveragedNormals(_NeighbourStencil):
 
     Inside the segment the normal is interpolated and renormalized (a C0 normal field):
         n̂(ξ) = m(ξ)/|m(ξ)|,   m(ξ) = (1−ξ) n̄_c + ξ n̄_d;
-    the gap is measured along it (DESIGN.md §3): x_s − x(ξ̄) ∥ n̂(ξ̄), i.e.
+    the gap is measured along it (docs/design.md §3): x_s − x(ξ̄) ∥ n̂(ξ̄), i.e.
         F(ξ) = (x_s − x(ξ)) × m(ξ) = 0   (quadratic in ξ),   g = (x_s − x(ξ̄))·n̂(ξ̄).
     A point on the line through x_c along n̄_c projects onto ξ = 0 of both adjacent
     segments: the gap is continuous across nodes (no blind wedge).
@@ -450,7 +450,7 @@ class AveragedTangent(AveragedNormals):
 
 @SMOOTHINGS.register("hermite")
 class Hermite(_NeighbourStencil):
-    """C1 cubic Hermite segments with averaged nodal tangents (DESIGN.md §6.4, eqs.
+    """C1 cubic Hermite segments with averaged nodal tangents (docs/design.md §6.4, eqs.
     3.6–3.13): on segment (c, d) of length l,
         x̂(ξ) = H₁ x_c + H₂ x_d + H₃ l ā_c + H₄ l ā_d,
         H₁ = 1 − 3ξ² + 2ξ³, H₂ = 3ξ² − 2ξ³, H₃ = ξ − 2ξ² + ξ³, H₄ = −ξ² + ξ³,
@@ -572,7 +572,7 @@ class BSplineParametrization:
     """Frozen data of a global B-spline on one master chain topology: per chain the degree,
     parameters ū, knots, and the derived per-segment polynomial tables and point map.
 
-    Built from node coordinates by :meth:`from_nodes` (DESIGN.md §6.5):
+    Built from node coordinates by :meth:`from_nodes` (docs/design.md §6.5):
     * chord-length parameters ū₀ = 0, ū_k = ū_{k−1} + |x_k − x_{k−1}|/r, ū_last = 1;
     * open chain (n+1 nodes, clamped, degree p = min(3, n)): knots u₀ = … = u_p = 0,
       u_{j+p} = (ū_j + … + ū_{j+p−1})/p for j = 1 … n − p, u_{m−p} = … = u_m = 1
@@ -691,7 +691,7 @@ class BSplineParametrization:
 @SMOOTHINGS.register("bspline")
 class BSpline(MasterCurve):
     """One global cubic B-spline per master chain, interpolating all its nodes (C2;
-    DESIGN.md §6.5, eqs. 3.16–3.33): clamped for an open chain, periodic for a closed one.
+    docs/design.md §6.5, eqs. 3.16–3.33): clamped for an open chain, periodic for a closed one.
 
     The curve is parametrized per master segment by the local ξ of eq. 3.33,
         t = ū_i + ξ (ū_{i+1} − ū_i)   on segment i (the data interval [ū_i, ū_{i+1}]),
@@ -731,10 +731,6 @@ class BSpline(MasterCurve):
 
     def with_nodes(self, x):
         return BSpline(x, self.seg, self.parametrization)
-
-    @property
-    def control_points(self) -> np.ndarray:
-        return self.points()
 
     def stencil(self, seg_index):
         return self._stencil[np.asarray(seg_index, dtype=np.int64)]
@@ -780,7 +776,7 @@ class BSpline(MasterCurve):
 
 # ---------------------------------------------------------------------- factory
 def make_curve(smoothing: str, x: np.ndarray, seg: np.ndarray) -> MasterCurve:
-    """The master curve of a contact pair's ``smoothing`` (a registered name, DESIGN.md §6)."""
+    """The master curve of a contact pair's ``smoothing`` (a registered name, docs/design.md §6)."""
     try:
         cls = SMOOTHINGS[smoothing]
     except KeyError as e:

@@ -1,5 +1,5 @@
 """Contact discretizations: from the current slave and master coordinates to the nodal
-weighted gaps g̃_j and areas A_j of the slave nodes, with exact derivatives (DESIGN.md §4).
+weighted gaps g̃_j and areas A_j of the slave nodes, with exact derivatives (docs/design.md §4).
 One class per method, registered under its scene name.
 
 * :class:`Mortar`: segment-to-segment integrals (:mod:`.mortar`), with the boundary
@@ -50,7 +50,7 @@ class Discretization:
 
 @METHODS.register("mortar")
 class Mortar(Discretization):
-    """g̃_j = ∫ N_j g dΓ, A_j = ∫ N_j dΓ over the slave segments (DESIGN.md §4)."""
+    """g̃_j = ∫ N_j g dΓ, A_j = ∫ N_j dΓ over the slave segments (docs/design.md §4)."""
 
     def weighted_gaps(self, xs, xm, curve, pairs):
         s, m = self.slave, self.master
@@ -68,7 +68,7 @@ class Mortar(Discretization):
 
 @METHODS.register("nts")
 class NodeToSegment(Discretization):
-    """g̃_j = A_j g_j at the slave node's projection (DESIGN.md §1, §3)."""
+    """g̃_j = A_j g_j at the slave node's projection (docs/design.md §1, §3)."""
 
     def __init__(self, slave: Surface, master: Surface, n_gauss: int | None = None):
         super().__init__(slave, master, n_gauss)

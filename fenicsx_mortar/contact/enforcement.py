@@ -1,4 +1,4 @@
-"""Normal-contact enforcement on nodal weighted gaps (DESIGN.md §5). One class per method.
+"""Normal-contact enforcement on nodal weighted gaps (docs/design.md §5). One class per method.
 
 An enforcement turns the nodal weighted gaps g̃_j and areas A_j of a pair (A_j > 0 only
 where the node's support sees the master) into contact pressures p_j, and contributes the

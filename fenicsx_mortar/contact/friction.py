@@ -1,4 +1,4 @@
-"""Friction laws (DESIGN.md §3, §5): a frictionless null object and Coulomb friction with a
+"""Friction laws (docs/design.md §3, §5): a frictionless null object and Coulomb friction with a
 moving friction cone. One class per law, registered under its scene name.
 
 Per slave node j with its closest-point projection ξ̄_j on master segment s_j (current

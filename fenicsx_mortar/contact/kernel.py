@@ -1,7 +1,7 @@
 """Result types shared by the contact kernels (mortar and node-to-segment).
 
 A kernel returns, for a nodal quantity q_j of the slave nodes (weighted gap g̃_j or nodal
-area A_j, DESIGN.md §4–5), a list of *contributions*: contribution k adds ``value[k]`` to
+area A_j, docs/design.md §4–5), a list of *contributions*: contribution k adds ``value[k]`` to
 q at slave node ``node[k]``, and depends on the local coordinates
 
     [x_{s_0}, y_{s_0}, …, x_{s_{S-1}}, y_{s_{S-1}}, x_{m_0}, y_{m_0}, …, x_{m_{L-1}}, y_{m_{L-1}}]
@@ -142,11 +142,6 @@ class Triplets(NamedTuple):
     rows: np.ndarray
     cols: np.ndarray
     vals: np.ndarray
-
-    def to_dense(self, shape: Tuple[int, int]) -> np.ndarray:
-        out = np.zeros(shape)
-        np.add.at(out, (self.rows, self.cols), self.vals)
-        return out
 
 
 def nodal_sum(contrib: NodalContributions, n_slave: int) -> np.ndarray:

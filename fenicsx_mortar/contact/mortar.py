@@ -1,11 +1,11 @@
-"""Mortar segment-to-segment integrals: weighted gaps, nodal areas, D and M (DESIGN.md §4).
+"""Mortar segment-to-segment integrals: weighted gaps, nodal areas, D and M (docs/design.md §4).
 
 For a candidate pair (slave segment s = [x_a, x_b], master segment m = [x_c, x_d]):
 
 1. Segmentation on the slave segment, x_s(ζ) = (1−ζ) x_a + ζ x_b. The shadow of the
    master segment ends where the slave point lies on the line through a master end node
    perpendicular to the curve's nodal tangent t̄ there (:meth:`MasterCurve.node_tangents`,
-   for the polyline the averaged tangent of DESIGN.md eq. 3.4):
+   for the polyline the averaged tangent of docs/design.md eq. 3.4):
        (x_s(ζ) − x_c)·t̄_c = 0  ⇒  ζ_c = (x_c − x_a)·t̄_c / ((x_b − x_a)·t̄_c),   same for d.
    Integration domain [ζ_lo, ζ_hi] = [0, 1] ∩ [min(ζ_c, ζ_d), max(ζ_c, ζ_d)]; empty → the
    pair is dropped. Adjacent master segments share t̄ at their common node, so their

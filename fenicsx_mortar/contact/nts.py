@@ -1,4 +1,4 @@
-"""Node-to-segment (NTS) contact, the classical baseline (DESIGN.md §1, §3, §5).
+"""Node-to-segment (NTS) contact, the classical baseline (docs/design.md §1, §3, §5).
 
 For each slave node j:
 
@@ -16,7 +16,7 @@ For each slave node j:
 * nodal area A_j = ½(|x_j − x_{j−1}| + |x_{j+1} − x_j|) (adjacent slave segments, current
   configuration); at a chain end the missing neighbour contributes 0;
 * weighted gap g̃_j = A_j g_j, so that g̃_j / A_j = g_j and the same enforcement code
-  (DESIGN.md §5) serves mortar and NTS.
+  (docs/design.md §5) serves mortar and NTS.
 
 Local coordinates of contribution j (S = 3 slave nodes, then the L master stencil points —
 master nodes, or the B-spline's control points, see :mod:`.curves` ``point_map``):

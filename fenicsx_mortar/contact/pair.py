@@ -75,7 +75,7 @@ class ContactPair:
         self.radius = search_radius or 2.0 * h
         self.dofs = np.concatenate([s.dofs.ravel(), m.dofs.ravel()])
         # the master curve: rebuilt from the converged nodes at each load step (the B-spline
-        # freezes its parametrization there, DESIGN.md §6), moved with the nodes in between
+        # freezes its parametrization there, docs/design.md §6), moved with the nodes in between
         self._curve = make_curve(smoothing, m.X, m.seg)
         self.n_global = dx.dof_count(V)
         self._l2g = dx.local_to_global_dofs(V)

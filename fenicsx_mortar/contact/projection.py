@@ -1,11 +1,11 @@
 """Projection of many points onto a master curve: vectorized safeguarded Newton
-(DESIGN.md §3, §6).
+(docs/design.md §3, §6).
 
 Every :class:`~.curves.MasterCurve` states its projection condition on a segment as a
 scalar function F(ξ) (:meth:`~.curves.MasterCurve.condition`) that *decreases* through the
 wanted root:
 
-* closest point (polyline, Hermite, B-spline; DESIGN.md §3 and §6.5):
+* closest point (polyline, Hermite, B-spline; docs/design.md §3 and §6.5):
       F(ξ) = (x_s − x(ξ))·x′(ξ),     F′ = −|x′|² + (x_s − x)·x″      (−F = dD/dξ, D = ½|x_s − x|²)
   (the Hermite and B-spline conditions are quintic in ξ);
 * projection along the smoothed normal (averaged normals, §3):

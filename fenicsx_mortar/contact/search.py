@@ -1,4 +1,4 @@
-"""Candidate (slave segment, master segment) pairs by bounding boxes (DESIGN.md §10, search).
+"""Candidate (slave segment, master segment) pairs by bounding boxes (docs/design.md §4).
 
 A pair is a candidate when the axis-aligned bounding boxes of the two segments, each
 inflated by ``radius``, overlap: |c_s − c_m| ≤ h_s + h_m + 2·radius on both axes (c box

@@ -2,7 +2,7 @@
 
 Surfaces are 1D and small, so every rank holds the whole surface (gathered once): reference
 coordinates, global dof numbers, and segments oriented so that n = e₃ × t points out of the
-body (DESIGN.md §3). Current coordinates are gathered again at every Newton iterate.
+body (docs/design.md §3). Current coordinates are gathered again at every Newton iterate.
 """
 from __future__ import annotations
 
@@ -21,7 +21,6 @@ class Surface:
     X: np.ndarray          # (n, 2) reference coordinates, nodes ordered along the chains
     dofs: np.ndarray       # (n, 2) global dof numbers of (u_x, u_y)
     seg: np.ndarray        # (n_seg, 2) node indices; e₃ × (x_b − x_a) points outward
-    seg_owner: np.ndarray  # (n_seg,) rank owning the facet (computes its contributions)
     body_tag: int          # cell tag of the body the surface bounds (−1: no cell tags)
     _mine: np.ndarray      # surface indices of the nodes whose dofs this rank owns
     _mine_local: np.ndarray  # their local (unrolled) dof indices, (k, 2)
@@ -111,8 +110,8 @@ def build_surface(V, facet_tags, values: int | Sequence[int], name: str,
                          f"touch cells of {len(set(tags))} bodies")
 
     key_index: dict[int, int] = {}
-    X, dofs, seg, owner = [], [], [], []
-    for r, part in enumerate(gathered):
+    X, dofs, seg = [], [], []
+    for part in gathered:
         for gd, p, _, _ in part:
             ends = []
             for k in range(2):
@@ -123,14 +122,13 @@ def build_surface(V, facet_tags, values: int | Sequence[int], name: str,
                     dofs.append(gd[k])
                 ends.append(key_index[key])
             seg.append(ends)
-            owner.append(r)
     X, dofs = np.array(X, dtype=float), np.array(dofs, dtype=np.int64)
-    seg, owner = np.array(seg, dtype=np.int64).reshape(-1, 2), np.array(owner)
+    seg = np.array(seg, dtype=np.int64).reshape(-1, 2)
     order, seg_order = _chain_order(seg, len(X))
     renum = np.empty(len(X), dtype=np.int64)
     renum[order] = np.arange(len(X))
     X, dofs = X[order], dofs[order]
-    seg, owner = renum[seg[seg_order]], owner[seg_order]
+    seg = renum[seg[seg_order]]
 
     mine, mine_local = [], []
     for gd, _, d, own in rows:
@@ -141,7 +139,7 @@ def build_surface(V, facet_tags, values: int | Sequence[int], name: str,
     mine = np.array(mine, dtype=np.int64)
     mine_local = np.array(mine_local, dtype=np.int32).reshape(-1, 2)
     mine, first = np.unique(mine, return_index=True)
-    return Surface(name, X, dofs, seg, owner, tags[0], mine, mine_local[first], comm)
+    return Surface(name, X, dofs, seg, tags[0], mine, mine_local[first], comm)
 
 
 

@@ -49,7 +49,7 @@ def test_bspline_interpolates_every_node(config):
     assert np.abs(x0 - x[seg[:, 0]]).max() <= 1e-12
     assert np.abs(x1 - x[seg[:, 1]]).max() <= 1e-12
     # the control points are not the nodes (a real interpolation, not a polygon)
-    assert np.abs(curve.control_points - x).max() > 1e-2
+    assert np.abs(curve.points() - x).max() > 1e-2
 
 
 def _piece_value(curve, s, piece, xi, k):

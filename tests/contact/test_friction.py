@@ -1,4 +1,4 @@
-"""Coulomb friction on the block-on-slab benchmark (B5, BENCHMARKS.md)."""
+"""Coulomb friction on the block-on-slab benchmark (B5, docs/benchmarks.md)."""
 import numpy as np
 import pytest
 

@@ -1,5 +1,5 @@
 """The assembled system (UFL bulk + contact pair hook inserted into PETSc) has a consistent
-tangent: the Taylor remainder ‖R(u + hδu) − R(u) − h K δu‖ falls as h² (DESIGN.md §7),
+tangent: the Taylor remainder ‖R(u + hδu) − R(u) − h K δu‖ falls as h² (docs/design.md §7),
 for mortar and NTS, penalty and augmented Lagrangian, on a state with an active contact zone.
 """
 import numpy as np

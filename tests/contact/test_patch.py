@@ -1,5 +1,5 @@
 """Contact patch test (B1): mortar + ALM transmits the uniform pressure exactly across the
-non-matching interface; node-to-segment does not (DESIGN.md §9, BENCHMARKS.md B1)."""
+non-matching interface; node-to-segment does not (docs/design.md §9, docs/benchmarks.md B1)."""
 import importlib.util
 
 import pytest
