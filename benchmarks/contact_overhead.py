@@ -32,7 +32,7 @@ What it measures
    pressed 0.25 h into a flat master of about 0.8 master segments per slave segment
    (non-matching, every slave node active: the most work per segment) — evaluated directly
    through the pair's numpy code path: search + ``mortar.weighted_gaps`` + nodal
-   sums/enforcement + ``assembly.contact_terms`` + PETSc insertion into a preallocated
+   sums/enforcement + the enforcement's residual and tangent + PETSc insertion into a preallocated
    matrix over the surface coordinates. N = 100 … 10 000 (2 decades). The least-squares
    exponent of time ∝ N^k (log-log) is printed for each phase and for the total (target
    k <= 1.15), and for the total over N >= 1000 alone (the small sizes are dominated by a
@@ -71,15 +71,17 @@ from fenicsx_mortar import _dolfinx as dx  # noqa: E402
 from fenicsx_mortar.bulk import build_bulk  # noqa: E402
 from fenicsx_mortar.contact import assembly, mortar  # noqa: E402
 from fenicsx_mortar.contact.curves import Polyline  # noqa: E402
-from fenicsx_mortar.contact.enforcement import ENFORCEMENTS  # noqa: E402
+from fenicsx_mortar.contact.registry import ENFORCEMENTS  # noqa: E402
+from fenicsx_mortar.contact.state import ContactState  # noqa: E402
 from fenicsx_mortar.contact.kernel import nodal_sum  # noqa: E402
-from fenicsx_mortar.contact.pair import build_contact  # noqa: E402
 from fenicsx_mortar.contact.search import candidate_pairs  # noqa: E402
 from fenicsx_mortar.meshing import build_domain  # noqa: E402
 from fenicsx_mortar.scene import Scene, from_dict, load_scene  # noqa: E402
+from fenicsx_mortar.problem import ContactProblem  # noqa: E402
+from fenicsx_mortar.run import scene_pairs  # noqa: E402
 from fenicsx_mortar.solver import NewtonSolver, Timings, run_load_steps  # noqa: E402
 
-A_HERTZ = 0.04814  # Hertz contact half-width (demos/scenes/hertz.toml)
+from benchmarks.analytics import HERTZ_A as A_HERTZ  # noqa: E402
 
 #: the clock the pieces are timed with (``--clock``): wall time by default; CPU time of this
 #: process is steadier on a machine shared with other jobs
@@ -94,12 +96,12 @@ CONTACT_PHASES = ("contact", "contact_search", "contact_kernel", "contact_insert
 def build(scene: Scene):
     """mesh → bulk → contact → Newton solver, as fenicsx_mortar.run.solve wires them."""
     scene.validate()
-    timings = Timings()
     dom = build_domain(scene)
     bulk = build_bulk(scene, dom)
-    hooks, matrix = build_contact(scene, dom, bulk, timings)
-    solver = NewtonSolver(bulk, scene.solver, hooks, timings, matrix)
-    return dom, bulk, hooks, solver
+    pairs = scene_pairs(scene, dom, bulk.V)
+    problem = ContactProblem(bulk.residual, bulk.u, bulk.bcs, pairs, bulk.jacobian,
+                             settings=scene.solver)
+    return dom, bulk, pairs, problem.solver
 
 
 def one_iteration(solver: NewtonSolver, reps: int) -> dict[str, float]:
@@ -131,8 +133,8 @@ def one_iteration(solver: NewtonSolver, reps: int) -> dict[str, float]:
             h.timings = tt
     out = {k: statistics.median(v[1:]) for k, v in samples.items()}
     st = solver.hooks[0].state
-    out["_contrib"] = st["gap"].size
-    out["_active"] = int(np.count_nonzero(st["p"] > 0))
+    out["_contrib"] = st.gap.size
+    out["_active"] = int(np.count_nonzero(st.p > 0))
     out["_slave_segments"] = len(solver.hooks[0].slave.seg)
     return out
 
@@ -165,12 +167,12 @@ def hertz(reps: int, solve: bool) -> dict:
     dom, bulk, hooks, solver = build(scene)
     t_build = time.perf_counter() - t0
     V = bulk.V
-    ndofs = V.dofmap.index_map.size_global * V.dofmap.index_map_bs
-    cells = dom.mesh.topology.index_map(2).size_global
+    ndofs = dx.dof_count(V)
+    cells = dx.num_cells_global(dom.mesh)
     info = f"{cells} cells, {ndofs} dofs; build {t_build:.1f} s"
     if solve:
         t0 = time.perf_counter()
-        ok, msg = run_load_steps(solver, scene.steps, lambda *a: None,
+        ok, msg = run_load_steps(solver, scene.steps, bulk.set_time, lambda *a: None,
                                  max_augmentations=scene.contacts[0].enforcement.max_augmentations)
         t_solve = time.perf_counter() - t0
         phases = ", ".join(f"{k} {v:.1f} s" for k, v in solver.timings.items())
@@ -183,7 +185,7 @@ def hertz(reps: int, solve: bool) -> dict:
         u.interpolate(lambda X: np.stack([np.zeros(X.shape[1]), np.full(X.shape[1], -delta)]),
                       dom.cells("disk"))
         u.x.scatter_forward()
-        u.vector.copy(solver.x)
+        dx.function_vector(u).copy(solver.x)
         bulk.set_time(1.0)
         info += f"; state: disk pressed rigidly {delta:.2e} into the block (--solve-hertz: " \
                 f"the solved state)"
@@ -220,11 +222,11 @@ def rings(reps: int, refine: int = 1) -> dict:
     u.interpolate(lambda X: np.stack([np.zeros(X.shape[1]), np.full(X.shape[1], -0.5)]),
                   moving)
     u.x.scatter_forward()
-    u.vector.copy(solver.x)
+    dx.function_vector(u).copy(solver.x)
     bulk.set_time(1.0)
     V = bulk.V
-    ndofs = V.dofmap.index_map.size_global * V.dofmap.index_map_bs
-    cells = dom.mesh.topology.index_map(2).size_global
+    ndofs = dx.dof_count(V)
+    cells = dx.num_cells_global(dom.mesh)
     solver._set_iterate(solver.x)
     r = one_iteration(solver, reps)
     slave = sum(h.slave.seg.shape[0] for h in hooks)
@@ -263,6 +265,8 @@ def scaling_case(n_slave: int, reps: int) -> dict[str, float]:
     enf = ENFORCEMENTS["alm"](1000.0 / h, ns, 1e-8, 0.0)
     dofs = np.arange(n_coords, dtype=np.int64)
     skip = np.zeros(0, dtype=np.int64)
+    layouts = assembly.Layouts()
+    ones = np.ones(ns)
     ctx: dict = {}
 
     def search():
@@ -270,17 +274,20 @@ def scaling_case(n_slave: int, reps: int) -> dict[str, float]:
 
     def kernel():
         curve = Polyline(xm, seg_m)
-        ctx["gap"], ctx["area"], _, _ = mortar.weighted_gaps(xs, seg_s, xm, seg_m, curve,
-                                                             ctx["pairs"], 2)
+        ctx["curve"] = curve
+        ctx["gap"], ctx["area"] = mortar.weighted_gaps(xs, seg_s, xm, seg_m, curve,
+                                                       ctx["pairs"], 2)
 
     def enforce():
         g, Ar = nodal_sum(ctx["gap"], ns), nodal_sum(ctx["area"], ns)
-        ctx["p"], ctx["active"] = enf.pressure(g, Ar)
+        st = ContactState(xs, xm, ctx["curve"], ctx["pairs"], ctx["gap"], ctx["area"], g, Ar,
+                          layouts)
+        st.law = enf.pressure(g, Ar)
+        ctx["st"], ctx["p"] = st, st.p
 
     def sparse():
-        G = assembly.gradient_matrix(ctx["gap"], ns, n_coords)
-        ctx["f"] = -(G.T @ ctx["p"])
-        *_, ctx["K"] = assembly.contact_terms(ctx["gap"], ctx["area"], enf, ns, n_coords)
+        ctx["f"] = enf.residual(ctx["st"], ones)
+        ctx["K"] = enf.tangent(ctx["st"], ones, first=False)
 
     # first pass to learn the pattern, then a preallocated PETSc matrix / vector
     search(), kernel(), enforce(), sparse()
@@ -297,7 +304,7 @@ def scaling_case(n_slave: int, reps: int) -> dict[str, float]:
 
     def petsc():
         assembly.add_to_vector(b, dofs, ctx["f"])
-        assembly.add_to_matrix(A, ctx["K"], dofs, skip, n_coords)
+        assembly.add_to_matrix(A, ctx["K"], dofs, skip, n_coords, layouts)
         A.assemble()
 
     pieces = (("search", search), ("kernel", kernel), ("enforce", enforce),

@@ -54,7 +54,7 @@ Other columns: completed (the solver's verdict), load fraction reached (pseudo-t
 converged steps, cuts (failed increments over the run = steps cut) and steps that needed a
 cut, Newton iterations per converged step (summed over its ALM augmentations; mean and
 max; the iterations of failed attempts are not included), wall and CPU seconds of the
-run (process pool of 2 workers on a shared 2-core machine).
+run (2 workers of ``benchmarks/pool.py`` on a shared 2-core machine).
 
 Expected result: every run completes the path; the smoothed masters (hermite, bspline) give
 a visibly and measurably smoother R_x curve (smaller osc) than the polyline (none) — at
@@ -73,17 +73,18 @@ from __future__ import annotations
 import argparse
 import csv
 import json
-import multiprocessing as mp
-import os
 import sys
 import time
 import traceback
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from benchmarks import pool  # noqa: E402
+
 DOCS = ROOT / "docs"
 OUT = ROOT / "results" / "half_rings_smoothing"
 CSV = DOCS / "friction_half_rings_smoothing.csv"
@@ -118,16 +119,14 @@ def taper(theta_deg: np.ndarray) -> np.ndarray:
     return np.cos(0.5 * np.pi * a) ** 2
 
 
-def interior_forces(hook) -> dict:
+def interior_forces(pair) -> dict:
     """Nodal contact forces on the slave (normal + tangential, from the pair's residual
     terms, read-only) split into the tapered interior part and the part near the master's
     end: Rx_int, M_int = the hub reaction and moment that the interior part alone would
     balance; Fx_end = x-force on the slave nodes near the end; Rx_all = −Σ all (a check)."""
-    n = hook.slave.n
-    F = -hook._normal_force(hook.mine)[: 2 * n].reshape(-1, 2)
-    if hook.friction is not None:
-        F = F - hook._friction_terms(tangent=False)[0][: 2 * n].reshape(-1, 2)
-    xs = hook.state["xs"]
+    n = pair.slave.n
+    F = -pair.nodal_forces()[: 2 * n].reshape(-1, 2)
+    xs = pair.state.xs
     w = taper(np.degrees(np.arctan2(xs[:, 1], xs[:, 0])))
     return dict(Rx_int=float(-np.sum(w * F[:, 0])),
                 M_int=float(-np.sum(w * (xs[:, 0] * F[:, 1] - xs[:, 1] * F[:, 0]))),
@@ -158,7 +157,7 @@ def run_one(name: str, mu: float, smoothing: str, wall_limit: float) -> dict:
     def on_step(rec: dict, state) -> None:
         c = rec["contact"]["rings"]
         s, phi = load_parameters(rec["time"])
-        split = interior_forces(state.hooks[0])
+        split = interior_forces(state.pairs[0])
         Rx = rec["reactions"]["hub"]["x"]
         misfit[0] = max(misfit[0], abs(split.pop("Rx_all") - Rx) / max(abs(Rx), 1.0))
         rows.append(dict(run=name, mu=mu, smoothing=smoothing, step=rec["step"],
@@ -190,6 +189,11 @@ def run_one(name: str, mu: float, smoothing: str, wall_limit: float) -> dict:
     return dict(name=name, mu=mu, smoothing=smoothing, completed=bool(completed),
                 message=message, rows=rows, wall=time.perf_counter() - t0,
                 cpu=time.process_time() - c0, split_misfit=misfit[0])
+
+
+def run_job(job: dict) -> dict:
+    """The pool's target: :func:`run_one` with its arguments by name."""
+    return run_one(**job)
 
 
 def on_targets(rows: list[dict]) -> list[dict]:
@@ -328,19 +332,23 @@ def main() -> None:
         runs = read_saved()
     else:
         todo = [r for r in RUNS if not args.only or (r[1] > 0 and r[2] in args.only.split(","))]
-        # one thread per worker: the pool's processes are the parallelism
-        for v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-            os.environ[v] = "1"
         t0 = time.perf_counter()
         done: dict[str, dict] = {}
-        with ProcessPoolExecutor(max_workers=max(1, min(args.jobs, 2)),
-                                 mp_context=mp.get_context("spawn")) as pool:
-            futures = {pool.submit(run_one, n, mu, s, args.wall_limit): n for n, mu, s in todo}
-            for f in as_completed(futures):
-                run = f.result()
-                done[run["name"]] = run
-                print(f"[{run['name']}] {'completed' if run['completed'] else 'STOPPED'} in "
-                      f"{run['wall']:.0f} s: {run['message'].splitlines()[0][:300]}", flush=True)
+
+        def finished(out: pool.Outcome) -> None:
+            if out.record is None:
+                raise RuntimeError(f"[{out.job.tag}] worker process died (exit code "
+                                   f"{out.returncode})")
+            run = out.record
+            done[run["name"]] = run
+            print(f"[{run['name']}] {'completed' if run['completed'] else 'STOPPED'} in "
+                  f"{run['wall']:.0f} s: {run['message'].splitlines()[0][:300]}", flush=True)
+        # the run's own wall limit (``run_one``) keeps what converged, so the pool sets none;
+        # the workers print their step lines here
+        jobs = [pool.Job(dict(name=n, mu=mu, smoothing=s, wall_limit=args.wall_limit), tag=n)
+                for n, mu, s in todo]
+        pool.run("benchmarks.half_rings_smoothing:run_job", jobs, finished,
+                 workers=max(1, min(args.jobs, 2)), output=None)
         print(f"total wall time {time.perf_counter() - t0:.0f} s", flush=True)
         if args.only:  # keep the other runs' saved data
             try:

@@ -8,7 +8,7 @@ What it measures
     except that the refined zone radius is set explicitly to REFINE_RADIUS = 0.15 >= 3a, so
     the uniformly refined zone covers the contact zone at every size.
     For each size it records: number of dofs, slave nodes in contact (last step), the
-    accuracy metrics of ``demos/demo_hertz.py::hertz_metrics`` (p_max/p0 - 1, a_fit/a - 1,
+    accuracy metrics of ``benchmarks/analytics.py::hertz_metrics`` (p_max/p0 - 1, a_fit/a - 1,
     relative L2 pressure error on [-a, a], |total contact force - F|/F), Newton iterations
     and augmentations per load step, and the wall time in total and by phase
     (``Result.timings``).
@@ -33,7 +33,7 @@ How long it takes
 """
 from __future__ import annotations
 
-import importlib.util
+import sys
 import time
 from pathlib import Path
 
@@ -47,18 +47,17 @@ import dolfinx  # noqa: E402
 from fenicsx_mortar import load_scene, solve  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from benchmarks import analytics  # noqa: E402
+from benchmarks.analytics import hertz_metrics  # noqa: E402
+
 SCENE = ROOT / "demos" / "scenes" / "hertz.toml"
 DOCS = ROOT / "docs"
 DIVISORS = (5, 10, 20)          # h_contact = a / divisor
 REFINE_RADIUS = 0.15            # >= 3a = 0.1444: the refined zone covers the contact zone
 CONTROL_MODEL = "linear"        # control runs: same scenes with a small-strain bulk law
-
-# The analytic values and the metrics are those of the demo (imported, not re-derived).
-_spec = importlib.util.spec_from_file_location("demo_hertz", ROOT / "demos" / "demo_hertz.py")
-demo_hertz = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(demo_hertz)
-hertz_metrics = demo_hertz.hertz_metrics
-a, p0, F, E_star = demo_hertz.a, demo_hertz.p0, demo_hertz.F, demo_hertz.E_star
+a, p0, E_star = analytics.HERTZ_A, analytics.HERTZ_P0, analytics.HERTZ_E_STAR
 
 
 def run_size(divisor: int, model: str | None = None) -> dict:
@@ -96,7 +95,7 @@ def orders(runs: list[dict], key: str) -> list[float]:
 def plot_pressure(runs: list[dict], path: Path) -> None:
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
     xs = np.linspace(-1.5 * a, 1.5 * a, 1201)
-    ax.plot(xs / a, p0 * np.sqrt(np.clip(1 - xs**2 / a**2, 0, None)) / p0, "k-", lw=1.2,
+    ax.plot(xs / a, analytics.pressure(xs, a, p0) / p0, "k-", lw=1.2,
             label=r"analytic $p_0\sqrt{1-x^2/a^2}$")
     markers = "osd^v"
     for r, m in zip(runs, markers):
@@ -218,7 +217,7 @@ h_c near the contact point, uniform within distance {REFINE_RADIUS} (≥ 3a) of 
 
 a = 2 √(F R / (π E*)) = {a:.5f},  p₀ = 2F / (π a) = {p0:.4f},  p(x) = p₀ √(1 − x²/a²)
 
-Metrics (`hertz_metrics` in `demos/demo_hertz.py`): p_max/p₀ − 1 from the largest nodal
+Metrics (`hertz_metrics` in `benchmarks/analytics.py`): p_max/p₀ − 1 from the largest nodal
 pressure; a_fit/a − 1 where a_fit is the least-squares fit of p_max √(1 − x²/a_fit²) to the
 nodal pressures; the relative L2 error of the piecewise-linear interpolant of the nodal
 pressures against p(x) on [−a, a]; |F_c − F|/F with F_c the total contact force on the
@@ -226,7 +225,7 @@ slave. x is the current position of the slave nodes.
 
 The simulation is finite-deformation (Neo-Hooke) and the contact pressure is evaluated on the
 deformed configuration; at this load the strains near the contact are of order
-p₀/E = {p0 / demo_hertz.E:.1%}, so the computed solution differs slightly from the small-strain Hertz
+p₀/E = {p0 / analytics.HERTZ_E:.1%}, so the computed solution differs slightly from the small-strain Hertz
 formula and need not converge exactly to it. As a control, the same meshes are also solved
 with the small-strain linear elastic law (`model = "{CONTROL_MODEL}"`) for both bodies; the
 contact kinematics stay those of the deformed configuration in both cases.

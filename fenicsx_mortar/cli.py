@@ -1,5 +1,6 @@
 """Command line: ``fenicsx-mortar run SCENE.toml --out DIR``, ``fenicsx-mortar check
-SCENE.toml``, ``fenicsx-mortar study [--quick] [--out DIR]`` (docs/accuracy-vs-time.md).
+SCENE.toml``, and in a source checkout ``fenicsx-mortar study [--quick] [--out DIR]``
+(``python -m benchmarks.study``, docs/accuracy-vs-time.md).
 
 Exit codes: 0 converged, 1 the run stopped early (outputs up to the last converged step are
 kept), 2 bad input (one message naming the problem, no traceback).
@@ -12,6 +13,9 @@ from pathlib import Path
 
 
 def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv[:1] == ["study"]:
+        return _study(argv[1:])
     parser = argparse.ArgumentParser(prog="fenicsx-mortar",
                                      description="2D finite-deformation mortar contact on FEniCSx")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -23,15 +27,11 @@ def main(argv: list[str] | None = None) -> int:
                      help="continue the run in DIR from its last converged step")
     check = sub.add_parser("check", help="validate a scene file (and its mesh) without solving")
     check.add_argument("scene", type=Path)
-    study = sub.add_parser("study", help="accuracy against compute time: method x smoothing x "
-                           "enforcement x mesh size on B1-B3 (docs/accuracy-vs-time.md)")
-    from .study import add_arguments
-    add_arguments(study)
+    # listed for --help only: main() hands "study" to the study's own parser first
+    sub.add_parser("study", add_help=False, help="accuracy against compute time: method x "
+                   "smoothing x enforcement x mesh size on B1-B3 (source checkout only; "
+                   "docs/accuracy-vs-time.md)")
     args = parser.parse_args(argv)
-    if args.command == "study":
-        # the study runs its solves in worker processes; this process only schedules them
-        from .study import run_from_args
-        return run_from_args(args)
 
     from mpi4py import MPI
 
@@ -71,6 +71,20 @@ def main(argv: list[str] | None = None) -> int:
                       f"{c['max_pressure']:.6g}, {c['active_nodes']} active nodes, "
                       f"KKT residual {c['kkt_residual']:.1e}")
     return 0 if result.converged else 1
+
+
+def _study(argv: list[str]) -> int:
+    """The study lives in the repository (benchmarks/study), not in the package: found next
+    to the package's directory, i.e. in a source checkout (editable install)."""
+    root = Path(__file__).resolve().parents[1]
+    if not (root / "benchmarks" / "study" / "__main__.py").is_file():
+        print("fenicsx-mortar: the study runs from a source checkout: "
+              "python -m benchmarks.study [--quick] [--out DIR] (in the repository root)",
+              file=sys.stderr)
+        return 2
+    sys.path.insert(0, str(root))
+    from benchmarks.study.__main__ import main as study
+    return study(argv, prog="fenicsx-mortar study")
 
 
 if __name__ == "__main__":

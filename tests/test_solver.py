@@ -4,7 +4,8 @@ from __future__ import annotations
 import pytest
 
 from fenicsx_mortar import solve
-from fenicsx_mortar.study import Case, make_scene
+from benchmarks.study.cases import Case
+from benchmarks.study.scenes import make_scene
 
 
 def test_full_newton_retry_rescues_stiff_penalty_hertz(monkeypatch):

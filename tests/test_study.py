@@ -1,4 +1,4 @@
-"""The accuracy-vs-time study (fenicsx_mortar/study.py): a tiny study end to end, the
+"""The accuracy-vs-time study (benchmarks/study): a tiny study end to end, the
 post-processing functions on known inputs, and the command line."""
 from __future__ import annotations
 
@@ -9,8 +9,11 @@ import math
 import numpy as np
 import pytest
 
-from fenicsx_mortar import study
-from fenicsx_mortar.study import Case
+from benchmarks import analytics
+from benchmarks.study import cases, metrics, plots, runner, scenes
+from benchmarks.study.cases import Case, Plan
+from benchmarks.study.records import key
+from benchmarks.study.report import best_within, report
 
 from conftest import ROOT, run_cli
 
@@ -24,8 +27,8 @@ TINY = ([Case("patch", m, "none", e, 0) for m in ("nts", "mortar") for e in ("al
 @pytest.fixture(scope="module")
 def tiny(tmp_path_factory):
     out = tmp_path_factory.mktemp("study")
-    plan = study.make_plan("tiny", list(TINY), cpu_limit=120.0, wall_limit=600.0)
-    records = study.run_study(plan, out, jobs=2, log=lambda s: None)
+    plan = cases.make_plan("tiny", list(TINY), cpu_limit=120.0, wall_limit=600.0)
+    records = runner.run_study(plan, out, jobs=2, log=lambda s: None)
     with (out / "study" / "runs.csv").open() as f:
         rows = list(csv.DictReader(f))
     return out, records, {(r["benchmark"], r["method"], r["smoothing"], r["enforcement"],
@@ -78,7 +81,7 @@ def test_half_rings_errors_against_the_reference_record():
     """finalize_rings: the reference's own error is 0, a converged run gets its error and
     oscillation, a failed run neither."""
     ref_case = Case("half_rings", "mortar", "bspline", "alm", 3)
-    t = study.RINGS_TIMES
+    t = cases.RINGS_TIMES
     curve = lambda dx: [[tk, 40 * max(tk - 1, 0) + dx * (tk >= 1), -80.0] for tk in t]  # noqa: E731
 
     def rec(case, status, c):
@@ -87,7 +90,7 @@ def test_half_rings_errors_against_the_reference_record():
     records = [rec(ref_case, "converged", curve(0.0)),
                rec(Case("half_rings", "nts", "none", "alm", 0), "converged", curve(2.0)),
                rec(Case("half_rings", "mortar", "none", "alm", 0), "failed", curve(0.0)[:5])]
-    study.finalize_rings(records, ref_case)
+    metrics.finalize_rings(records, ref_case)
     ref, ok, bad = records
     assert ref["reference"] and ref["err_reaction"] == 0.0
     assert ok["err_reaction"] == pytest.approx(2.0 / max(math.hypot(40 * max(tk - 1, 0), 80)
@@ -107,14 +110,14 @@ def test_report_and_plots_written(tiny):
                                                                "pareto_hertz.png"}
     assert "## Headline" in md and "CPU" in md
     # regenerating from the CSV gives the same document
-    assert study.report(out, log=lambda s: None) == md
+    assert report(out, log=lambda s: None) == md
 
 
 def test_time_limit_is_recorded_not_fatal(tmp_path):
     """A run stopped at the CPU limit is recorded as 'timeout' and the next one still runs."""
     cases = [Case("hertz", "mortar", "none", "alm", 1), Case("patch", "mortar", "none", "alm", 0)]
-    plan = study.Plan("limit", cases, cpu_limit=0.5, wall_limit=60.0, skip_after=0)
-    records = {study._key(r): r for r in study.run_cases(plan, jobs=1)}
+    plan = Plan("limit", cases, cpu_limit=0.5, wall_limit=60.0, skip_after=0)
+    records = {key(r): r for r in runner.run_cases(plan, jobs=1)}
     slow, fast = records[cases[0].key], records[cases[1].key]
     assert slow["status"] == "timeout" and "time limit" in slow["message"]
     assert slow["err_l2"] in ("", None) or math.isnan(slow["err_l2"])
@@ -123,71 +126,71 @@ def test_time_limit_is_recorded_not_fatal(tmp_path):
 
 def test_skip_rule_after_two_failures():
     """A combination that failed at the two coarser levels is recorded as skipped."""
-    plan = study.Plan("skip", [Case("hertz", "mortar", "none", "alm", k) for k in (0, 1, 2)],
-                      cpu_limit=0.01, wall_limit=60.0)
-    records = {r["level"]: r for r in study.run_cases(plan, jobs=1)}
+    plan = Plan("skip", [Case("hertz", "mortar", "none", "alm", k) for k in (0, 1, 2)],
+                cpu_limit=0.01, wall_limit=60.0)
+    records = {r["level"]: r for r in runner.run_cases(plan, jobs=1)}
     assert records[0]["status"] == records[1]["status"] == "timeout"
     assert records[2]["status"] == "skipped" and "a/2, a/4" in records[2]["message"]
 
 
 def test_reaction_errors_on_known_curves():
-    t = np.array(study.RINGS_TIMES)
+    t = np.array(cases.RINGS_TIMES)
     smooth = [[tk, 3.0 * (tk - 1) ** 2 + tk, -80.0 + (tk - 1) ** 3] for tk in t]
-    err, osc = study.reaction_errors(smooth, smooth)
+    err, osc = analytics.reaction_errors(smooth, smooth, cases.RINGS_TIMES)
     assert err == 0.0 and osc < 1e-12           # a cubic is its own least-squares cubic
     wiggle = [[tk, rx + (0.4 if k % 2 else -0.4) * (tk > 1), ry]
               for k, (tk, rx, ry) in enumerate(smooth)]
-    err, osc = study.reaction_errors(wiggle, smooth)
+    err, osc = analytics.reaction_errors(wiggle, smooth, cases.RINGS_TIMES)
     scale = max(math.hypot(rx, ry) for _, rx, ry in smooth)
     assert err == pytest.approx(0.4 / scale)
     assert 0.2 / scale < osc < 0.6 / scale      # about the amplitude (the fit absorbs a bit)
     # a curve that stops early has no error (NaN), not a wrong one
-    err, osc = study.reaction_errors(smooth[:5], smooth)
+    err, osc = analytics.reaction_errors(smooth[:5], smooth, cases.RINGS_TIMES)
     assert math.isnan(err) and math.isnan(osc)
 
 
 def test_pareto_front_and_budget():
     pts = [(1.0, 0.5), (2.0, 0.6), (3.0, 0.1), (0.5, 0.9), (4.0, 0.1)]
-    assert study.pareto_front(pts) == [(0.5, 0.9), (1.0, 0.5), (3.0, 0.1)]
+    assert plots.pareto_front(pts) == [(0.5, 0.9), (1.0, 0.5), (3.0, 0.1)]
     rows = [dict(status="converged", cpu_time=t, err_l2=e) for t, e in pts]
     rows.append(dict(status="failed", cpu_time=0.1, err_l2=0.0))
-    assert study.best_within(rows, "err_l2", 2.5)["err_l2"] == 0.5
-    assert study.best_within(rows, "err_l2", 0.2) is None
+    assert best_within(rows, "err_l2", 2.5)["err_l2"] == 0.5
+    assert best_within(rows, "err_l2", 0.2) is None
 
 
 def test_hertz_constants_match_the_demo():
     spec = importlib.util.spec_from_file_location("demo_hertz", ROOT / "demos" / "demo_hertz.py")
     demo = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(demo)
-    assert study.HERTZ_A == pytest.approx(demo.a, rel=1e-12)
-    assert study.HERTZ_P0 == pytest.approx(demo.p0, rel=1e-12)
+    assert analytics.HERTZ_A == pytest.approx(demo.a, rel=1e-12)
+    assert analytics.HERTZ_P0 == pytest.approx(demo.p0, rel=1e-12)
 
 
 def test_scene_of_a_case():
-    s = study.make_scene(Case("hertz_mc", "nts", "hermite", "penalty-100", 2))
+    s = scenes.make_scene(Case("hertz_mc", "nts", "hermite", "penalty-100", 2))
     pair = s.contacts[0]
     assert (pair.slave, pair.master) == ("block_top", "disk_arc")
     assert (pair.method, pair.smoothing, pair.enforcement.type) == ("nts", "hermite", "penalty")
-    h = study.LEVELS["hertz_mc"][2].h
-    assert h == pytest.approx(study.HERTZ_A / 8)
+    h = cases.LEVELS["hertz_mc"][2].h
+    assert h == pytest.approx(analytics.HERTZ_A / 8)
     assert pair.enforcement.epsilon == pytest.approx(100 * 1000.0 / h)
     assert s.mesh.params["h_contact"] == pytest.approx(h)
-    r = study.make_scene(Case("half_rings", "mortar", "none", "alm", 0))
-    assert r.steps.targets() == study.RINGS_TIMES and r.output.xdmf is False
+    r = scenes.make_scene(Case("half_rings", "mortar", "none", "alm", 0))
+    assert r.steps.targets() == cases.RINGS_TIMES and r.output.xdmf is False
     assert r.contacts[0].enforcement.epsilon is None       # ALM: the package's default start
 
 
 def test_full_plan_is_the_documented_matrix():
-    plan = study.full_plan()
+    plan = cases.full_plan()
     keys = {c.key for c in plan.cases}
     assert len(keys) == len(plan.cases)
-    for b in study.BENCHMARKS:
-        for m in study.METHODS:
-            for s in study.SMOOTHINGS:
-                for e in study.ENFORCEMENTS:
-                    lv = [k for k in study.MATRIX_LEVELS[b] if (b, m, s, e, k) in keys]
+    for b in cases.BENCHMARKS:
+        for m in cases.METHODS:
+            for s in cases.SMOOTHINGS:
+                for e in cases.ENFORCEMENTS:
+                    lv = [k for k in cases.MATRIX_LEVELS[b] if (b, m, s, e, k) in keys]
                     assert lv == ([0] if s == "averaged-tangent" else [0, 1, 2, 3])
-    assert plan.reference == Case(*study.RINGS_REFERENCE) and plan.reference.key in keys
+    assert plan.reference == Case(*cases.RINGS_REFERENCE) and plan.reference.key in keys
 
 
 def test_cli_has_study():

@@ -4,31 +4,24 @@ point map with its frozen parametrization."""
 import numpy as np
 import pytest
 
+from _chains import chain
 from fenicsx_mortar.contact.curves import (AveragedNormals, BSpline, Hermite, Polyline,
                                            make_curve)
 from fenicsx_mortar.contact.registry import SMOOTHINGS
-
-
-def _chain(points, closed=False):
-    n = len(points)
-    seg = np.stack([np.arange(n - 1), np.arange(1, n)], axis=1)
-    if closed:
-        seg = np.vstack([seg, [[n - 1, 0]]])
-    return np.asarray(points, dtype=float), seg
 
 
 def wavy_open(n=14, seed=3):
     """Open chain with convex and concave parts, irregular spacing."""
     rng = np.random.default_rng(seed)
     t = np.sort(np.concatenate([[0.0, 3.0], rng.uniform(0.0, 3.0, n - 2)]))
-    return _chain(np.c_[t, 0.4 * np.sin(2.1 * t)])
+    return chain(np.c_[t, 0.4 * np.sin(2.1 * t)])
 
 
 def irregular_circle(n=11, R=1.3, seed=4):
     """Closed chain on a circle, clockwise (outward normal), irregular angles."""
     rng = np.random.default_rng(seed)
     phi = np.sort(rng.uniform(0.0, 2 * np.pi, n))[::-1]
-    return _chain(R * np.c_[np.cos(phi), np.sin(phi)], closed=True), phi
+    return chain(R * np.c_[np.cos(phi), np.sin(phi)], closed=True), phi
 
 
 def _values(curve, seg, xi, order):
@@ -177,7 +170,7 @@ def _node_normals(curve, x, seg):
 def test_averaged_normals_exact_on_regular_polygon(variant):
     n, R = 9, 2.0
     phi = np.linspace(0.0, 2 * np.pi, n, endpoint=False)[::-1] + 0.3
-    x, seg = _chain(R * np.c_[np.cos(phi), np.sin(phi)], closed=True)
+    x, seg = chain(R * np.c_[np.cos(phi), np.sin(phi)], closed=True)
     curve = AveragedNormals(x, seg, variant)
     exact = x[seg[:, 0]] / R
     assert np.abs(_node_normals(curve, x, seg) - exact).max() < 1e-15

@@ -8,7 +8,8 @@ import pytest
 
 from fenicsx_mortar import solve
 from fenicsx_mortar.contact import enforcement
-from fenicsx_mortar.study import Case, make_scene
+from benchmarks.study.cases import Case
+from benchmarks.study.scenes import make_scene
 
 
 def _hertz(level: int, enf: str):

@@ -1,16 +1,11 @@
 """Hertz (B2) with mortar + ALM: p₀ and a within 2 % at h_c = a/10, force balance to
 round-off, and an ALM answer that does not depend on the penalty parameter."""
-import importlib.util
-
 import numpy as np
 import pytest
 
+from benchmarks.analytics import HERTZ_A, hertz_metrics
 from conftest import ROOT
 from fenicsx_mortar import load_scene, solve
-
-spec = importlib.util.spec_from_file_location("demo_hertz", ROOT / "demos/demo_hertz.py")
-demo = importlib.util.module_from_spec(spec)
-spec.loader.exec_module(demo)
 
 
 def hertz(h_contact: float, epsilon: float | None = None, enforcement: str = "alm",
@@ -26,7 +21,7 @@ def hertz(h_contact: float, epsilon: float | None = None, enforcement: str = "al
 
 
 def test_hertz_pressure_at_a_over_10():
-    m = demo.hertz_metrics(hertz(demo.a / 10))
+    m = hertz_metrics(hertz(HERTZ_A / 10))
     assert abs(m["p0_error"]) < 0.02
     assert abs(m["a_error"]) < 0.02
     assert m["force_error"] < 1e-8
@@ -38,7 +33,7 @@ def test_nts_hertz_on_matching_meshes(d):
     node sits on a master node, where the segment normals jump; the gap blends into the
     one along the node's averaged normal (nts.BLEND). Before, a/10 failed (Newton cycled
     at every cut of the first step). Now: converged, force balance to round-off, p₀ and a within 5 % (a/4) / 3 % (a/10)."""
-    m = demo.hertz_metrics(hertz(demo.a / d, method="nts"))
+    m = hertz_metrics(hertz(HERTZ_A / d, method="nts"))
     tol = 0.05 if d == 4 else 0.03
     assert abs(m["p0_error"]) < tol
     assert abs(m["a_error"]) < tol
@@ -51,7 +46,7 @@ def test_dependence_on_penalty_parameter(kind):
     Penalty: they do not (its answer carries a penetration ~ p/ε)."""
     p = []
     for eps in (3e3, 3e4):
-        scene_eps = hertz(demo.a / 4, eps, kind)
+        scene_eps = hertz(HERTZ_A / 4, eps, kind)
         p.append(scene_eps.pairs[0].interface()["pressure"])
     change = np.abs(p[0] - p[1]).max() / p[1].max()
     if kind == "alm":

@@ -6,48 +6,11 @@ import time
 import numpy as np
 import pytest
 
+from _chains import assemble, chain, closed_master, curved_open, jittered, rates
 from fenicsx_mortar.contact import mortar
 from fenicsx_mortar.contact.curves import Polyline
 from fenicsx_mortar.contact.kernel import nodal_sum
 from fenicsx_mortar.contact.search import candidate_pairs
-
-
-def _chain(points, closed=False):
-    n = len(points)
-    seg = np.stack([np.arange(n - 1), np.arange(1, n)], axis=1)
-    if closed:
-        seg = np.vstack([seg, [[n - 1, 0]]])
-    return np.asarray(points, dtype=float), seg
-
-
-def _jittered(a, b, n, rng, amount=0.3):
-    """n nodes from a to b (either direction), spacing randomly non-uniform."""
-    t = np.linspace(0.0, 1.0, n)
-    t[1:-1] += rng.uniform(-amount, amount, n - 2) / (n - 1)
-    return a + (b - a) * t
-
-
-def curved_open(seed=5):
-    """Curved, non-matching, partly overlapping chains: master (lower body's top, +x) on
-    x ∈ [0, 3] with convex and concave parts; slave (upper body's bottom, −x) on
-    x ∈ [3.6, 0.7], i.e. beyond the master's right end; gaps of both signs."""
-    rng = np.random.default_rng(seed)
-    xm_ = _jittered(0.0, 3.0, 12, rng)
-    xs_ = _jittered(3.6, 0.7, 15, rng)
-    xm, sm = _chain(np.c_[xm_, 0.15 * np.sin(1.7 * xm_)])
-    xs, ss = _chain(np.c_[xs_, 0.15 * np.sin(1.7 * xs_) + 0.01 + 0.03 * np.cos(2.3 * xs_)])
-    return xs, ss, xm, sm
-
-
-def closed_master(seed=6):
-    """Closed master (unit disk, clockwise so the normal points outward) under an open
-    slave arc facing down; the disk's far side must be ignored (not facing)."""
-    rng = np.random.default_rng(seed)
-    phi = np.sort(rng.uniform(0, 2 * np.pi, 24))[::-1]            # clockwise
-    xm, sm = _chain(np.c_[np.cos(phi), np.sin(phi)], closed=True)
-    xs_ = _jittered(0.8, -0.7, 11, rng)
-    xs, ss = _chain(np.c_[xs_, 1.0 - 0.2 * xs_**2 + 0.02 * np.sin(3 * xs_)])
-    return xs, ss, xm, sm
 
 
 def _mortar(xs, ss, xm, sm, n_gauss=2):
@@ -56,23 +19,6 @@ def _mortar(xs, ss, xm, sm, n_gauss=2):
     pairs = candidate_pairs(xs, ss, xm, sm, 0.3)
     return (*mortar.weighted_gaps(xs, ss, xm, sm, curve, pairs, n_gauss),
             *mortar.mortar_matrices(xs, ss, xm, curve, pairs, n_gauss))
-
-
-def _assemble(contrib, ns, nm, weights):
-    """G = Σ_k w[node_k] value_k with its global gradient and Hessian over
-    [slave coords, master coords]."""
-    n = 2 * (ns + nm)
-    w = weights[contrib.node]
-    dofs = contrib.global_indices(ns)
-    g = np.zeros(n)
-    np.add.at(g, dofs, w[:, None] * contrib.grad)
-    H = np.zeros((n, n))
-    np.add.at(H, (dofs[:, :, None], dofs[:, None, :]), w[:, None, None] * contrib.hess)
-    return float(w @ contrib.value), g, H
-
-
-def _rates(h, r):
-    return np.log(r[:-1] / r[1:]) / np.log(h[:-1] / h[1:])
 
 
 def taylor_check(kernel, xs, ss, xm, sm, seed=0):
@@ -85,7 +31,7 @@ def taylor_check(kernel, xs, ss, xm, sm, seed=0):
 
     def evaluate(X):
         out = kernel(X[:2 * ns].reshape(ns, 2), ss, X[2 * ns:].reshape(nm, 2), sm)
-        return [_assemble(c, ns, nm, weights) for c in out], [c.size for c in out]
+        return [assemble(c, ns, nm, weights) for c in out], [c.size for c in out]
 
     base, sizes = evaluate(X0)
     hs = 10.0 ** -np.arange(2.0, 5.5, 0.5)
@@ -98,8 +44,8 @@ def taylor_check(kernel, xs, ss, xm, sm, seed=0):
             r0.append(abs(G - G0 - h * g0 @ dX))
             r1.append(np.linalg.norm(g - g0 - h * H0 @ dX))
         r0, r1 = np.array(r0), np.array(r1)
-        assert np.all((_rates(hs, r0) > 1.8) & (_rates(hs, r0) < 2.2)), (q, r0)
-        assert np.all((_rates(hs, r1) > 1.8) & (_rates(hs, r1) < 2.2)), (q, r1)
+        assert np.all((rates(hs, r0) > 1.8) & (rates(hs, r0) < 2.2)), (q, r0)
+        assert np.all((rates(hs, r1) > 1.8) & (rates(hs, r1) < 2.2)), (q, r1)
     return sizes
 
 
@@ -132,10 +78,10 @@ def flat(delta, slave_from, slave_to, seed=2):
     """Master y = 0 on x ∈ [0, 4] (+x, 9 nodes), slave y = δ traversed −x, both spaced
     randomly (non-matching)."""
     rng = np.random.default_rng(seed)
-    xm_ = _jittered(0.0, 4.0, 9, rng, 0.4)
-    xs_ = _jittered(slave_from, slave_to, 12, rng, 0.4)
-    xm, sm = _chain(np.c_[xm_, np.zeros_like(xm_)])
-    xs, ss = _chain(np.c_[xs_, np.full_like(xs_, delta)])
+    xm_ = jittered(0.0, 4.0, 9, rng, 0.4)
+    xs_ = jittered(slave_from, slave_to, 12, rng, 0.4)
+    xm, sm = chain(np.c_[xm_, np.zeros_like(xm_)])
+    xs, ss = chain(np.c_[xs_, np.full_like(xs_, delta)])
     return xs, ss, xm, sm
 
 
@@ -177,7 +123,7 @@ def test_flat_gap_area_and_mortar_sums(slave_from, slave_to):
 
 def _forces(gap, ns, nm, p):
     """f = Σ_j p ∇g̃_j over [slave coords, master coords], as (node, 2) arrays."""
-    _, f, _ = _assemble(gap, ns, nm, np.full(ns, p))
+    _, f, _ = assemble(gap, ns, nm, np.full(ns, p))
     return f[:2 * ns].reshape(ns, 2), f[2 * ns:].reshape(nm, 2)
 
 
@@ -200,12 +146,12 @@ def test_patch_test_consistent_nodal_forces(slave_from, slave_to):
 # ---------------------------------------------------------------- segmentation tiling
 def test_segmentation_tiles_slave_segments():
     rng = np.random.default_rng(4)
-    xm_ = _jittered(0.0, 3.0, 25, rng)
-    xm, sm = _chain(np.c_[xm_, 0.3 * np.sin(2.0 * xm_)])          # convex and concave
+    xm_ = jittered(0.0, 3.0, 25, rng)
+    xm, sm = chain(np.c_[xm_, 0.3 * np.sin(2.0 * xm_)])          # convex and concave
     # long slave segments, each spanning several master segments; the chain runs past
     # the master's right end (x = 3) and stops inside its span at the left
-    xs_ = _jittered(3.4, 0.3, 6, rng, 0.2)
-    xs, ss = _chain(np.c_[xs_, 0.3 * np.sin(2.0 * xs_) + 0.05])
+    xs_ = jittered(3.4, 0.3, 6, rng, 0.2)
+    xs, ss = chain(np.c_[xs_, 0.3 * np.sin(2.0 * xs_) + 0.05])
     curve = Polyline(xm, sm)
     ps = np.repeat(np.arange(len(ss)), len(sm))
     pm = np.tile(np.arange(len(sm)), len(ss))
@@ -233,9 +179,9 @@ def test_segmentation_tiles_slave_segments():
 def test_vectorized_cost_scales_linearly():
     def run(N):
         t = np.linspace(0.0, 1.0, N + 1)
-        xs, ss = _chain(np.c_[1.0 - t, 0.3 / N + 0.1 * np.sin(6.0 * (1.0 - t))])
+        xs, ss = chain(np.c_[1.0 - t, 0.3 / N + 0.1 * np.sin(6.0 * (1.0 - t))])
         u = np.linspace(0.0, 1.0, int(0.77 * N) + 1)
-        xm, sm = _chain(np.c_[u, 0.1 * np.sin(6.0 * u)])
+        xm, sm = chain(np.c_[u, 0.1 * np.sin(6.0 * u)])
         best = np.inf
         for _ in range(2):
             t0 = time.perf_counter()
@@ -285,7 +231,7 @@ def smoothed_taylor_check(kernel_of_curve, xs, ss, xm, sm, smoothing, seed=0):
         out = kernel_of_curve(curve, X[:2 * ns].reshape(ns, 2), X[2 * ns:].reshape(nm, 2))
         res = []
         for c in out:
-            G, g, H = _assemble(c, ns, npts, weights)
+            G, g, H = assemble(c, ns, npts, weights)
             res.append((G,) + to_node_space(g, H, ns, pmap))
         return res, [c.node.tolist() for c in out]
 
@@ -303,7 +249,7 @@ def smoothed_taylor_check(kernel_of_curve, xs, ss, xm, sm, smoothing, seed=0):
             # least-squares slope over the three decades, and no pairwise rate far off
             # (the first pair may be pre-asymptotic)
             slope = np.polyfit(np.log(hs), np.log(r), 1)[0]
-            assert 1.9 < slope < 2.1 and np.all(_rates(hs, r) > 1.6), (q, r)
+            assert 1.9 < slope < 2.1 and np.all(rates(hs, r) > 1.6), (q, r)
     return len(nodes[0])
 
 
@@ -333,18 +279,18 @@ def test_bspline_rebuilt_parametrization_is_first_order():
         return gap
     curve = make_curve("bspline", xm, sm)
     c0 = G(xm, curve)
-    G0, g0, _ = _assemble(c0, ns, nm, w)
+    G0, g0, _ = assemble(c0, ns, nm, w)
     g0, _ = to_node_space(g0, np.zeros((g0.size, g0.size)), ns, curve.point_map)
     hs = np.array([1e-3, 1e-4, 1e-5])
     frozen, rebuilt = [], []
     for h in hs:
         xm_h = xm + h * dxm
         lin = G0 + h * g0[2 * ns:] @ dxm.ravel()
-        frozen.append(abs(_assemble(G(xm_h, curve), ns, nm, w)[0] - lin))
-        rebuilt.append(abs(_assemble(G(xm_h, make_curve("bspline", xm_h, sm)), ns, nm, w)[0]
+        frozen.append(abs(assemble(G(xm_h, curve), ns, nm, w)[0] - lin))
+        rebuilt.append(abs(assemble(G(xm_h, make_curve("bspline", xm_h, sm)), ns, nm, w)[0]
                            - lin))
-    assert np.all(_rates(hs, np.array(frozen)) > 1.8)
-    assert np.all(np.abs(_rates(hs, np.array(rebuilt)) - 1.0) < 0.1)
+    assert np.all(rates(hs, np.array(frozen)) > 1.8)
+    assert np.all(np.abs(rates(hs, np.array(rebuilt)) - 1.0) < 0.1)
 
 
 @pytest.mark.parametrize("smoothing", SMOOTHINGS.names())
@@ -366,7 +312,7 @@ def test_flat_patch_property_with_smoothing(smoothing, slave_from, slave_to):
     gap, _ = mortar.weighted_gaps(xs, ss, xm, sm, curve, pairs)
     ns, nm = len(xs), len(xm)
     npts = nm if curve.point_map is None else curve.point_map.shape[0]
-    _, f, _ = _assemble(gap, ns, npts, np.full(ns, p))
+    _, f, _ = assemble(gap, ns, npts, np.full(ns, p))
     f, _ = to_node_space(f, np.zeros((f.size, f.size)), ns, curve.point_map)
     fs, fm = f[:2 * ns].reshape(ns, 2), f[2 * ns:].reshape(nm, 2)
     a, b = max(slave_to, 0.0), min(slave_from, 4.0)

@@ -3,72 +3,24 @@ its nodal quantities, and its known failure of the contact patch test."""
 import numpy as np
 import pytest
 
+from _chains import assemble, chain, closed_master, curved_open, jittered, rates
 from fenicsx_mortar.contact import nts
 from fenicsx_mortar.contact.curves import Polyline
 from fenicsx_mortar.contact.kernel import nodal_sum
 from fenicsx_mortar.contact.search import candidate_pairs
 
 
-def _chain(points, closed=False):
-    n = len(points)
-    seg = np.stack([np.arange(n - 1), np.arange(1, n)], axis=1)
-    if closed:
-        seg = np.vstack([seg, [[n - 1, 0]]])
-    return np.asarray(points, dtype=float), seg
-
-
-def _jittered(a, b, n, rng, amount=0.3):
-    t = np.linspace(0.0, 1.0, n)
-    t[1:-1] += rng.uniform(-amount, amount, n - 2) / (n - 1)
-    return a + (b - a) * t
-
-
-def curved_open(seed=5):
-    """Curved non-matching chains; the slave runs beyond the master's right end."""
-    rng = np.random.default_rng(seed)
-    xm_ = _jittered(0.0, 3.0, 12, rng)
-    xs_ = _jittered(3.6, 0.7, 15, rng)
-    xm, sm = _chain(np.c_[xm_, 0.15 * np.sin(1.7 * xm_)])
-    xs, ss = _chain(np.c_[xs_, 0.15 * np.sin(1.7 * xs_) + 0.01 + 0.03 * np.cos(2.3 * xs_)])
-    return xs, ss, xm, sm
-
-
-def closed_master(seed=6):
-    """Unit disk traversed clockwise (outward normal) under a slave arc."""
-    rng = np.random.default_rng(seed)
-    phi = np.sort(rng.uniform(0, 2 * np.pi, 24))[::-1]
-    xm, sm = _chain(np.c_[np.cos(phi), np.sin(phi)], closed=True)
-    xs_ = _jittered(0.8, -0.7, 11, rng)
-    xs, ss = _chain(np.c_[xs_, 1.0 - 0.2 * xs_**2 + 0.02 * np.sin(3 * xs_)])
-    return xs, ss, xm, sm
-
-
 def flat(delta, slave_from=3.3, slave_to=0.6, seed=2):
     rng = np.random.default_rng(seed)
-    xm_ = _jittered(0.0, 4.0, 9, rng, 0.4)
-    xs_ = _jittered(slave_from, slave_to, 12, rng, 0.4)
-    xm, sm = _chain(np.c_[xm_, np.zeros_like(xm_)])
-    xs, ss = _chain(np.c_[xs_, np.full_like(xs_, delta)])
+    xm_ = jittered(0.0, 4.0, 9, rng, 0.4)
+    xs_ = jittered(slave_from, slave_to, 12, rng, 0.4)
+    xm, sm = chain(np.c_[xm_, np.zeros_like(xm_)])
+    xs, ss = chain(np.c_[xs_, np.full_like(xs_, delta)])
     return xs, ss, xm, sm
 
 
 def _nts(xs, ss, xm, sm, radius=0.3):
     return nts.node_gaps(xs, ss, xm, sm, Polyline(xm, sm), candidate_pairs(xs, ss, xm, sm, radius))
-
-
-def _assemble(contrib, ns, nm, weights):
-    n = 2 * (ns + nm)
-    w = weights[contrib.node]
-    dofs = contrib.global_indices(ns)
-    g = np.zeros(n)
-    np.add.at(g, dofs, w[:, None] * contrib.grad)
-    H = np.zeros((n, n))
-    np.add.at(H, (dofs[:, :, None], dofs[:, None, :]), w[:, None, None] * contrib.hess)
-    return float(w @ contrib.value), g, H
-
-
-def _rates(h, r):
-    return np.log(r[:-1] / r[1:]) / np.log(h[:-1] / h[1:])
 
 
 @pytest.mark.parametrize("config", [curved_open, closed_master])
@@ -82,7 +34,7 @@ def test_taylor_weighted_gap_and_area(config):
 
     def evaluate(X):
         out = _nts(X[:2 * ns].reshape(ns, 2), ss, X[2 * ns:].reshape(nm, 2), sm)
-        return [_assemble(c, ns, nm, weights) for c in out], [c.node.tolist() for c in out]
+        return [assemble(c, ns, nm, weights) for c in out], [c.node.tolist() for c in out]
 
     base, nodes = evaluate(X0)
     assert len(nodes[0]) > 5
@@ -95,8 +47,8 @@ def test_taylor_weighted_gap_and_area(config):
             G, g, _ = out[q]
             r0.append(abs(G - G0 - h * g0 @ dX))
             r1.append(np.linalg.norm(g - g0 - h * H0 @ dX))
-        assert np.all((_rates(hs, np.array(r0)) > 1.8) & (_rates(hs, np.array(r0)) < 2.2)), r0
-        assert np.all((_rates(hs, np.array(r1)) > 1.8) & (_rates(hs, np.array(r1)) < 2.2)), r1
+        assert np.all((rates(hs, np.array(r0)) > 1.8) & (rates(hs, np.array(r0)) < 2.2)), r0
+        assert np.all((rates(hs, np.array(r1)) > 1.8) & (rates(hs, np.array(r1)) < 2.2)), r1
 
 
 def test_point_gap_and_nodal_area():
@@ -168,7 +120,7 @@ def test_nts_fails_the_patch_test():
     xs, ss, xm, sm = flat(0.0, slave_from, slave_to)
     gap, _ = _nts(xs, ss, xm, sm)
     ns, nm = len(xs), len(xm)
-    _, f, _ = _assemble(gap, ns, nm, np.full(ns, p))
+    _, f, _ = assemble(gap, ns, nm, np.full(ns, p))
     fs, fm = f[:2 * ns].reshape(ns, 2), f[2 * ns:].reshape(nm, 2)
     consistent = np.zeros(nm)
     s, w = np.polynomial.legendre.leggauss(2)

@@ -4,6 +4,7 @@ projected ξ (Taylor tests), and reported failures."""
 import numpy as np
 import pytest
 
+from _chains import rates
 from fenicsx_mortar.contact import projection
 from fenicsx_mortar.contact.ad import Jet2
 from fenicsx_mortar.contact.curves import make_curve
@@ -137,10 +138,6 @@ def test_projection_along_averaged_normal(variant):
     assert np.abs(best - cp.distance).max() < 1e-10
 
 
-def _rates(h, r):
-    return np.log(r[:-1] / r[1:]) / np.log(h[:-1] / h[1:])
-
-
 @pytest.mark.parametrize("smoothing", SMOOTHINGS.names())
 def test_projected_xi_has_exact_derivatives(smoothing):
     # ξ̄(x_s, P) from the float Newton + two chord steps in jet arithmetic: Taylor test
@@ -170,8 +167,8 @@ def test_projected_xi_has_exact_derivatives(smoothing):
     r0, r1 = np.array(r0), np.array(r1)
     if smoothing == "none":
         assert np.all(r0 > 0)                        # closed form, same test
-    assert np.all((_rates(hs, r0) > 1.8) & (_rates(hs, r0) < 2.2)), r0
-    assert np.all((_rates(hs, r1) > 1.8) & (_rates(hs, r1) < 2.2)), r1
+    assert np.all((rates(hs, r0) > 1.8) & (rates(hs, r0) < 2.2)), r0
+    assert np.all((rates(hs, r1) > 1.8) & (rates(hs, r1) < 2.2)), r1
 
 
 def test_failures_are_reported():

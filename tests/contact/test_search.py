@@ -2,15 +2,8 @@
 import numpy as np
 import pytest
 
+from _chains import chain
 from fenicsx_mortar.contact.search import candidate_pairs
-
-
-def _chain(points, closed=False):
-    n = len(points)
-    seg = np.stack([np.arange(n - 1), np.arange(1, n)], axis=1)
-    if closed:
-        seg = np.vstack([seg, [[n - 1, 0]]])
-    return np.asarray(points, dtype=float), seg
 
 
 def _brute_force(xs, ss, xm, sm, radius):
@@ -26,8 +19,8 @@ def _brute_force(xs, ss, xm, sm, radius):
 def test_matches_brute_force_on_random_chains(seed):
     rng = np.random.default_rng(seed)
     # random walks with varying step lengths, some segments long
-    xs, ss = _chain(np.cumsum(rng.normal(scale=0.3, size=(60, 2)), axis=0))
-    xm, sm = _chain(np.cumsum(rng.normal(scale=0.2, size=(80, 2)), axis=0), closed=True)
+    xs, ss = chain(np.cumsum(rng.normal(scale=0.3, size=(60, 2)), axis=0))
+    xm, sm = chain(np.cumsum(rng.normal(scale=0.2, size=(80, 2)), axis=0), closed=True)
     for radius in (0.0, 0.05, 0.4):
         ps, pm = candidate_pairs(xs, ss, xm, sm, radius)
         got = set(zip(ps.tolist(), pm.tolist()))
@@ -38,10 +31,10 @@ def test_matches_brute_force_on_random_chains(seed):
 
 def test_hand_case():
     # master: flat line y = 0 from x = 0 to 3 in unit segments
-    xm, sm = _chain([[0, 0], [1, 0], [2, 0], [3, 0]])
+    xm, sm = chain([[0, 0], [1, 0], [2, 0], [3, 0]])
     # slave: two segments at height 0.1 over x ∈ [2.5, 1.5] and [1.5, 0.5] (traversed −x),
     # then one rising steeply from (0.5, 0.1) to (−2, 5)
-    xs, ss = _chain([[2.5, 0.1], [1.5, 0.1], [0.5, 0.1], [-2.0, 5.0]])
+    xs, ss = chain([[2.5, 0.1], [1.5, 0.1], [0.5, 0.1], [-2.0, 5.0]])
     # radius 0.06: the vertical gap 0.1 is bridged (2 × 0.06); horizontally slave [1.5, 2.5]
     # reaches [1.44, 2.56], missing master [0, 1] (up to 1.06)
     ps, pm = candidate_pairs(xs, ss, xm, sm, 0.06)

@@ -22,7 +22,7 @@ import warnings
 import numpy as np
 import pytest
 
-from _cases import BOUNDS, LOGS, SMOOTHINGS, get
+from _cases import BOUNDS, SMOOTHINGS, get
 from _common import HARD, assert_stable, contact, run_scene
 
 EXACT = 1e-6  # uniform-pressure cases: max |p/P - 1| and osc
