@@ -11,18 +11,8 @@ from fenicsx_mortar.contact import registry
 from benchmarks.analytics import HERTZ_A
 
 
-def _names(reg: registry.Registry, fallback: tuple[str, ...]) -> tuple[str, ...]:
-    # TODO(lead): drop fallback once the registry is populated (until then the built-in
-    # classes do not register, and the registry's import of them may fail)
-    try:
-        return reg.names() or fallback
-    except ImportError:
-        return fallback
-
-
-METHODS = _names(registry.METHODS, ("nts", "mortar"))
-SMOOTHINGS = _names(registry.SMOOTHINGS, ("none", "averaged-simple", "averaged-weighted",
-                                          "averaged-tangent", "hermite", "bspline"))
+METHODS = registry.METHODS.names()
+SMOOTHINGS = registry.SMOOTHINGS.names()
 # the study's own labels: penalty with epsilon = factor * E/h (slave body's E, h = slave
 # element size in the contact zone), and ALM
 ENFORCEMENTS = ("penalty-1", "penalty-10", "penalty-100", "alm")

@@ -33,17 +33,12 @@ point maps an O(δᵏ) error to O(δᵏ⁺¹), so ξ₂ is exact to second order
 implicit-function derivative −F_x/F_ξ and its Hessian
 −(F_xx + F_xξ ξ_xᵀ + ξ_x F_ξx + F_ξξ ξ_x ξ_xᵀ)/F_ξ (tests/contact/test_projection.py).
 
-:func:`closest_point` projects points onto the whole curve: it starts on the segments next
-to the nearest nodes and hands over to the neighbouring segment while the root leaves
-[0, 1] (at most ``max_hops`` times); at an open chain end or a convex corner it stops at
-the node.
+:func:`closest_segments` picks, per slave node, its master segment among candidates (NTS,
+friction).
 """
 from __future__ import annotations
 
-from typing import NamedTuple
-
 import numpy as np
-from scipy.spatial import cKDTree
 
 from . import ad
 from .ad import Jet2
@@ -210,57 +205,3 @@ def closest_segments(slave_x, master_x, nodes, segs, curve, previous=None):
     first = np.ones(nodes.shape[0], dtype=bool)
     first[1:] = nodes[1:] != nodes[:-1]
     return nodes[first], segs[first]
-
-
-class ClosestPoint(NamedTuple):
-    seg: np.ndarray        # (n,) segment of the projection
-    xi: np.ndarray         # (n,) ξ ∈ [0, 1] on it
-    x: np.ndarray          # (n, 2) the curve point
-    distance: np.ndarray   # (n,) |x_s − x| (for a closest-point curve the distance to it)
-    ok: np.ndarray         # (n,) False: Newton failed or the hand-over did not settle
-
-
-def closest_point(curve, points: np.ndarray, n_starts: int = 2,
-                  max_hops: int = 64) -> ClosestPoint:
-    """Project ``points (n, 2)`` onto the whole curve (values only).
-
-    Starts on both segments at each of the ``n_starts`` nearest nodes, hands over to the
-    next / previous segment while the root on the current one lies beyond ξ = 1 / ξ = 0,
-    stops at a chain end or when it would return to the segment it came from (a corner
-    node), clamps ξ to [0, 1], and keeps the nearest of the results. Failures are
-    reported in ``ok``, not raised.
-    """
-    pts = np.asarray(points, dtype=float).reshape(-1, 2)
-    n = pts.shape[0]
-    before, after = curve.node_segments()
-    used = np.unique(curve.seg)
-    _, near = cKDTree(curve.x[used]).query(pts, k=min(n_starts, used.shape[0]))
-    near = np.asarray(near).reshape(n, -1)
-    near = used[np.where(near < used.shape[0], near, 0)]      # (non-finite points: any)
-    starts = np.concatenate([before[near], after[near]], axis=1)          # (n, 2 n_starts)
-    starts = np.where(starts >= 0, starts, np.concatenate([after[near], before[near]], 1))
-    owner = np.repeat(np.arange(n), starts.shape[1])
-    seg = starts.ravel()
-    xs = (pts[owner, 0], pts[owner, 1])
-    came = np.full(seg.shape, -1)
-    moving = np.ones(seg.shape, dtype=bool)
-    for _ in range(max_hops):
-        P = curve.split_points(curve.local_points(seg))
-        xi, _, status = solve_on_segments(curve, seg, xs, P)
-        nxt, prv = curve.next_seg[seg], curve.prev_seg[seg]
-        go_next = (xi > 1.0) & (nxt >= 0) & (nxt != came)
-        go_prev = (xi < 0.0) & (prv >= 0) & (prv != came)
-        moving = go_next | go_prev
-        if not moving.any():
-            break
-        came = np.where(moving, seg, came)
-        seg = np.where(go_next, nxt, np.where(go_prev, prv, seg))
-    xi = np.clip(xi, 0.0, 1.0)
-    P = curve.split_points(curve.local_points(seg))
-    xm = curve.derivatives(seg, xi, P, 0)[0]
-    dist = np.hypot(xs[0] - xm[0], xs[1] - xm[1])
-    ok = (status != FAILED) & ~moving
-    dist_rank = np.where(ok, dist, np.inf).reshape(n, -1)
-    best = np.argmin(dist_rank, axis=1) + np.arange(n) * starts.shape[1]
-    return ClosestPoint(seg[best], xi[best], np.stack([xm[0][best], xm[1][best]], axis=1),
-                        dist[best], ok.reshape(n, -1).any(axis=1))

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from _chains import rates
+from benchmarks.gap_accuracy import closest_point
 from fenicsx_mortar.contact import projection
 from fenicsx_mortar.contact.ad import Jet2
 from fenicsx_mortar.contact.curves import make_curve
@@ -81,7 +82,7 @@ def test_closest_point_matches_brute_force(smoothing, config):
     curve = make_curve(smoothing, x, seg)
     rng = np.random.default_rng(7)
     pts = _points(curve, x, seg, 10_000, rng)
-    cp = projection.closest_point(curve, pts)
+    cp = closest_point(curve, pts)
     assert cp.ok.all()
     assert np.all((cp.xi >= 0.0) & (cp.xi <= 1.0))
     assert np.allclose(cp.x, _eval(curve, cp.seg, cp.xi), atol=1e-15)
@@ -106,7 +107,7 @@ def test_projection_along_averaged_normal(variant):
     curve = make_curve(variant, x, seg)
     rng = np.random.default_rng(2)
     pts = _points(curve, x, seg, 2000, rng)
-    cp = projection.closest_point(curve, pts)
+    cp = closest_point(curve, pts)
     assert cp.ok.all()
     P = curve.split_points(curve.local_points(cp.seg))
     n = np.stack(curve.normal_at(cp.seg, cp.xi, P), 1)
@@ -182,7 +183,7 @@ def test_failures_are_reported():
     assert status.tolist() == [projection.FAILED, projection.FOUND, projection.FAILED]
     with pytest.raises(projection.ProjectionError, match="failed for 2 of 3"):
         curve.project(s, xs, P)
-    cp = projection.closest_point(curve, np.array([[1.0, 0.3], [np.nan, 0.0]]))
+    cp = closest_point(curve, np.array([[1.0, 0.3], [np.nan, 0.0]]))
     assert cp.ok.tolist() == [True, False]
     # a root beyond the window is "not on this segment", not a failure
     far = (np.array([x[-1, 0] + 5.0]), np.array([x[-1, 1]]))
