@@ -117,7 +117,8 @@ def gap_errors(smoothing: str, n: int, pts, exact):
 def main() -> None:
     rng = np.random.default_rng(0)
     pts, exact = slave_points(rng)
-    err = {s: np.array([gap_errors(s, n, pts, exact).max() for n in NS]) for s in SMOOTHINGS.names()}
+    err = {s: np.array([gap_errors(s, n, pts, exact).max() for n in NS])
+           for s in SMOOTHINGS.names()}
     h = 2 * R * np.sin(np.pi / np.array(NS))                 # segment length
     orders = {s: np.log(e[:-1] / e[1:]) / np.log(h[:-1] / h[1:]) for s, e in err.items()}
 

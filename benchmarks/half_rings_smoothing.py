@@ -225,7 +225,8 @@ def measures(run: dict) -> dict:
         newton_mean=float(np.mean(newton)) if newton else float("nan"),
         newton_max=int(max(newton)) if newton else 0,
         n_turn=len(turn),
-        **{f"osc_{k}": oscillation(np.array([r[k] for r in turn])) for k in ("Rx", "Ry", "M", "Rx_int", "M_int", "Fx_end")},
+        **{f"osc_{k}": oscillation(np.array([r[k] for r in turn]))
+           for k in ("Rx", "Ry", "M", "Rx_int", "M_int", "Fx_end")},
         p_max=max((r["p_max"] for r in rows), default=float("nan")))
 
 
@@ -241,7 +242,8 @@ def table(runs: list[dict]) -> str:
             f"| {label} | {'yes' if m['completed'] else '**no**'} | {100 * m['reached']:.1f} % "
             f"| {m['steps']} | {m['cuts']} ({m['cut_steps']}) | {m['newton_mean']:.1f} / "
             f"{m['newton_max']} | {m['osc_Rx']:.2e}{partial} | {m['osc_Ry']:.2e} | "
-            f"{m['osc_M']:.2e} | {m['osc_Rx_int']:.2e} | {m['osc_Fx_end']:.2e} | {m['p_max']:.3g} | {run['wall']:.0f} | {run['cpu']:.0f} |")
+            f"{m['osc_M']:.2e} | {m['osc_Rx_int']:.2e} | {m['osc_Fx_end']:.2e} | "
+            f"{m['p_max']:.3g} | {run['wall']:.0f} | {run['cpu']:.0f} |")
     return "\n".join(lines)
 
 
@@ -291,7 +293,9 @@ def plot(runs: list[dict]) -> None:
                  f"{run['smoothing']}: osc R_x {m['osc_Rx']:.3f}, interior {m['osc_Rx_int']:.3f}"
                  ) + ("" if run["completed"] else f" — STOPPED at t = {rows[-1]['time']:.4g}")
         t = np.array([0.0] + [r["time"] for r in rows])
-        col = lambda k: np.array([0.0] + [r[k] for r in rows])
+
+        def col(k):
+            return np.array([0.0] + [r[k] for r in rows])
         a_x.plot(t, col("Rx"), label=label, **style)
         a_i.plot(t, col("Rx_int"), **style)
         a_y.plot(t, col("Ry"), **style)

@@ -60,7 +60,8 @@ def main() -> None:
         print(done[r["label"]], flush=True)
     workers = max(1, min(args.jobs, 2))
     pool.run("benchmarks.stability_table:measure", jobs, finished, workers=workers)
-    rows = ["| case | scene | converged | Newton its mean / max | cuts | oscillation | wall s | CPU s | stopped |",
+    rows = ["| case | scene | converged | Newton its mean / max | cuts | oscillation "
+            "| wall s | CPU s | stopped |",
             "|---|---|---|---|---|---|---|---|---|"]
     rows += [done[j.tag] for j in jobs]
     rows.append(f"\nTotal solve time: {total_wall:.0f} s wall, {total_cpu:.0f} s CPU (summed over "
@@ -87,7 +88,9 @@ def measure(job: list) -> dict:
 
 
 def _short(message: str) -> str:
-    m = re.search(r"stopped at pseudo-time ([0-9.e+-]+).*?(Newton failed: \w+|Newton stopped by the cycling guard|augmented Lagrangian[^;]*)",
+    m = re.search(r"stopped at pseudo-time ([0-9.e+-]+).*?"
+                  r"(Newton failed: \w+|Newton stopped by the cycling guard"
+                  r"|augmented Lagrangian[^;]*)",
                   message)
     return f"t = {m.group(1)}: {m.group(2)}" if m else message[:80].replace("|", "/")
 

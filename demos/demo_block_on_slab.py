@@ -112,12 +112,15 @@ if __name__ == "__main__":
     print(f"slide, last step: {on.sum()} active nodes, all slipping: {all_slip}; "
           f"max | |t_T| - mu p | / (mu p) = {cone:.1e}")
     print(f"slide, last step: reaction {R:.8f}, carried {carried_x(last):.8f} (rel. diff "
-          f"{reaction_err:.1e}); |T| / (mu N) - 1 = {mu_err:.1e}, mu N = {MU * c['normal_force']:.8f}")
+          f"{reaction_err:.1e}); |T| / (mu N) - 1 = {mu_err:.1e}, "
+          f"mu N = {MU * c['normal_force']:.8f}")
 
     # reaction curves: CSV and PNG
-    header = "run,time,u_push,applied_or_reaction_x,carried_x,normal_force,tangential_force,stick_nodes,slip_nodes"
+    header = ("run,time,u_push,applied_or_reaction_x,carried_x,normal_force,tangential_force,"
+              "stick_nodes,slip_nodes")
     (OUT / "reactions.csv").write_text(header + "\n" + "\n".join(
-        ",".join(str(v) if isinstance(v, (str, int)) else f"{v:.12g}" for v in r) for r in rows) + "\n")
+        ",".join(str(v) if isinstance(v, (str, int)) else f"{v:.12g}" for v in r)
+        for r in rows) + "\n")
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt

@@ -18,7 +18,8 @@ from fenicsx_mortar import load_scene, solve
 scene = load_scene(Path(__file__).parent / "scenes" / "block_compression.toml")
 p = scene.pressures[0].value
 
-print(f"{'law':10s} {'max|σyy+p|/p':>14s} {'max|σxx|/p':>12s} {'λ1':>10s} {'λ2':>10s} {'Newton/step':>12s}")
+print(f"{'law':10s} {'max|σyy+p|/p':>14s} {'max|σxx|/p':>12s} {'λ1':>10s} {'λ2':>10s} "
+      f"{'Newton/step':>12s}")
 worst = 0.0
 for law in ("neo-hooke", "svk"):
     scene.bodies[0].material.model = law

@@ -93,7 +93,8 @@ l2 = np.sqrt(np.trapz((np.interp(xs, x, p) - exact) ** 2, xs) / np.trapz(exact**
 force = pair.record()["hertz"]["force_on_slave"][1]   # the block pushes the disk up
 p_err = p.max() / p0 - 1.0
 if comm.rank == 0:
-    print(f"analytic: a = {a:.5f}, p0 = {p0:.4f}; {fm.__name__} on {V.dofmap.index_map.size_global * 2} dofs")
+    print(f"analytic: a = {a:.5f}, p0 = {p0:.4f}; "
+          f"{fm.__name__} on {V.dofmap.index_map.size_global * 2} dofs")
     print(f"p_max/p0 - 1 = {100 * p_err:+.2f} %")
     print(f"relative L2 pressure error on [-a, a] = {100 * l2:.2f} %")
     print(f"|contact force - F| / F = {abs(force - F_TOTAL) / F_TOTAL:.1e}")

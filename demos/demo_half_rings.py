@@ -21,9 +21,9 @@ origin and the moment is carried by the tangential tractions.
 
 Writes ``results/demo_half_rings[_full]/``: ``reactions.csv``/``.png`` (hub reactions and
 moment against the load parameter), ``deformed.png`` (meshes coloured by contact pressure at
-chosen steps) and ``master_end.png`` (zoom on the master's end), ``snapshots.npz`` (every step's nodal state, for ``fenicsx_mortar.pictures``),
-the package's per-step interface CSVs in ``run/interface/`` and, with ``--full``,
-``load_path.gif``.
+chosen steps) and ``master_end.png`` (zoom on the master's end), ``snapshots.npz`` (every
+step's nodal state, for ``fenicsx_mortar.pictures``), the package's per-step interface CSVs
+in ``run/interface/`` and, with ``--full``, ``load_path.gif``.
 """
 import argparse
 import time
@@ -82,8 +82,10 @@ def run(mu: float, smoothing: str, times: list[float] | None, out: Path):
         rows.append(dict(time=rec["time"], press=s, phi=phi, Rx=rec["reactions"]["hub"]["x"],
                          Ry=rec["reactions"]["hub"]["y"], M=hub_moment(state),
                          N=c["normal_force"], T=c.get("tangential_force", 0.0),
-                         Fx_contact=c["force_on_slave"][0] + c.get("tangential_force_on_slave", [0, 0])[0],
-                         Fy_contact=c["force_on_slave"][1] + c.get("tangential_force_on_slave", [0, 0])[1],
+                         Fx_contact=(c["force_on_slave"][0]
+                                     + c.get("tangential_force_on_slave", [0, 0])[0]),
+                         Fy_contact=(c["force_on_slave"][1]
+                                     + c.get("tangential_force_on_slave", [0, 0])[1]),
                          r_contact=r_contact, active=c["active_nodes"],
                          stick=c.get("stick_nodes", 0), slip=c.get("slip_nodes", 0),
                          p_max=c["max_pressure"], newton=rec["newton_iterations"],
@@ -94,7 +96,8 @@ def run(mu: float, smoothing: str, times: list[float] | None, out: Path):
               f"  cuts {rec['cuts']}  N = {c['normal_force']:9.3f}  M = {rows[-1]['M']:9.3f}"
               f"  stick/slip {rows[-1]['stick']}/{rows[-1]['slip']}", flush=True)
         if len(rows) >= 20 and rows[-1]["time"] - rows[-20]["time"] < 0.01:
-            raise Stalled(f"20 steps advanced pseudo-time by less than 0.01 (t = {rec['time']:.6g})")
+            raise Stalled("20 steps advanced pseudo-time by less than 0.01 "
+                          f"(t = {rec['time']:.6g})")
 
     t0 = time.perf_counter()
     try:
@@ -131,7 +134,9 @@ def write_curves(out: Path, rows: list[dict], mu: float, title: str) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     t = np.array([0.0] + [r["time"] for r in rows])
-    col = lambda k: np.array([0.0] + [r[k] for r in rows])
+
+    def col(k):
+        return np.array([0.0] + [r[k] for r in rows])
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4), constrained_layout=True)
     a1.plot(t, col("Rx"), "o-", ms=3, label="hub R_x")
     a1.plot(t, col("Ry"), "s-", ms=3, label="hub R_y")
@@ -181,11 +186,14 @@ if __name__ == "__main__":
     title = f"half-rings, mu = {args.mu:g}, smoothing {args.smoothing}"
     write_curves(out, rows, args.mu, title)
     save_snapshots(out / "snapshots.npz", snaps)
-    label = lambda sn: "t = {:.3g}: press {:.2f}, turn {:.1f}°".format(
-        sn.time, *(lambda p: (p[0], np.degrees(p[1])))(load_parameters(sn.time)))
+
+    def label(sn):
+        p = load_parameters(sn.time)
+        return "t = {:.3g}: press {:.2f}, turn {:.1f}°".format(sn.time, p[0], np.degrees(p[1]))
     times = [r["time"] for r in rows]
     chosen = [times.index(1.0)] if 1.0 in times else []
-    chosen += [int(np.argmin(np.abs(np.array(times) - t))) for t in (1.25, 1.5, 2.0) if t <= times[-1]]
+    chosen += [int(np.argmin(np.abs(np.array(times) - t)))
+               for t in (1.25, 1.5, 2.0) if t <= times[-1]]
     chosen = sorted(set(chosen + [len(rows) - 1]))
     frames_png(out / "deformed.png", [snaps[i] for i in chosen], ncols=2, label=label,
                window=(-13, 13, -12.7, 0.5), panel=(5.2, 3.0), legend_loc="upper center",

@@ -34,8 +34,9 @@ def hertz_metrics(result) -> dict:
     order = np.argsort(x)
     x, p = x[order], p[order]
     p_max = p.max()
-    fit = minimize_scalar(lambda s: np.sum((p - p_max * np.sqrt(np.clip(1 - x**2 / s**2, 0, None)))**2),
-                          bounds=(0.5 * a, 2.0 * a), method="bounded", options={"xatol": 1e-10})
+    fit = minimize_scalar(
+        lambda s: np.sum((p - p_max * np.sqrt(np.clip(1 - x**2 / s**2, 0, None)))**2),
+        bounds=(0.5 * a, 2.0 * a), method="bounded", options={"xatol": 1e-10})
     xs = np.linspace(-a, a, 4001)
     exact = p0 * np.sqrt(np.clip(1 - xs**2 / a**2, 0, None))
     l2 = np.sqrt(np.trapz((np.interp(xs, x, p) - exact)**2, xs) / np.trapz(exact**2, xs))

@@ -8,8 +8,9 @@ initial gap 0.02; Neo-Hooke in both, Coulomb μ = 0.3 (``--mu`` changes it). The
 edge moves down by 1.0 (t ∈ [0, 1], press), then 8 to the right with u_y held
 (t ∈ [1, 2], iron).
 
-By default a SHORT run: the press in 9 steps (the first one closes the gap) and the first 3 ironing steps (slide 0.6),
-so the test suite stays fast; ``--full`` runs the scene's whole load path (80 steps).
+By default a SHORT run: the press in 9 steps (the first one closes the gap) and the first 3
+ironing steps (slide 0.6), so the test suite stays fast; ``--full`` runs the scene's whole
+load path (80 steps).
 
 Expected result: the tool is in equilibrium under its top edge and the contact alone, so
 the reactions on its top edge equal minus the contact force on the tool (solver
@@ -85,7 +86,8 @@ def run(mu: float, times: list[float] | None, out: Path):
               f"{abs(r['T']) / max(r['N'], 1e-300):.4f}  stick/slip {r['stick']}/{r['slip']}",
               flush=True)
         if len(rows) >= 20 and rows[-1]["time"] - rows[-20]["time"] < 0.01:
-            raise Stalled(f"20 steps advanced pseudo-time by less than 0.01 (t = {rec['time']:.6g})")
+            raise Stalled("20 steps advanced pseudo-time by less than 0.01 "
+                          f"(t = {rec['time']:.6g})")
 
     t0 = time.perf_counter()
     try:
@@ -110,7 +112,9 @@ def write_curves(out: Path, rows: list[dict], mu: float, title: str) -> None:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    col = lambda k, rs: np.array([r[k] for r in rs])
+
+    def col(k, rs):
+        return np.array([r[k] for r in rs])
     press = [r for r in rows if r["time"] <= 1.0]
     iron = [r for r in rows if r["time"] >= 1.0]
     fig, (a0, a1, a2) = plt.subplots(1, 3, figsize=(14, 4), constrained_layout=True)
@@ -150,7 +154,8 @@ if __name__ == "__main__":
         rows, snaps, wall = read_saved(out), load_snapshots(out / "snapshots.npz"), 0.0
         converged, message = rows[-1]["time"] >= 2.0 - 1e-12, "redrawn from saved data"
     else:
-        converged, message, rows, snaps, wall = run(args.mu, None if args.full else SHORT_TIMES, out)
+        converged, message, rows, snaps, wall = run(args.mu,
+                                                    None if args.full else SHORT_TIMES, out)
     print(("completed" if converged else "STOPPED") + f": {message} ({wall:.1f} s)")
     last = rows[-1]
     depth, slide = load_parameters(last["time"])
@@ -161,11 +166,16 @@ if __name__ == "__main__":
     title = f"mu = {args.mu:g}"
     write_curves(out, rows, args.mu, title)
     save_snapshots(out / "snapshots.npz", snaps)
-    label = lambda s: "t = {:.4g}: depth {:.2f}, slide {:.2f}".format(s.time, *load_parameters(s.time))
+
+    def label(s):
+        return "t = {:.4g}: depth {:.2f}, slide {:.2f}".format(s.time, *load_parameters(s.time))
     times = np.array([r["time"] for r in rows])
-    chosen = sorted({int(np.argmin(np.abs(times - t))) for t in (1.0, 1.25, 1.5, 2.0) if t <= times[-1]}
+    chosen = sorted({int(np.argmin(np.abs(times - t)))
+                     for t in (1.0, 1.25, 1.5, 2.0) if t <= times[-1]}
                     | {len(rows) - 1})
-    tool_x = lambda s: 1.2 + load_parameters(s.time)[1]
+
+    def tool_x(s):
+        return 1.2 + load_parameters(s.time)[1]
     frames_png(out / "deformed.png", [snaps[i] for i in chosen], ncols=2, label=label,
                window=(-0.3, 12.3, 1.5, 6.3), panel=(6.0, 2.6),
                suptitle=f"ironing, {title}: tool arc coloured by contact pressure")

@@ -34,7 +34,8 @@ def patch_errors(method: str, cell: str) -> tuple[float, float, int, int]:
 
 
 if __name__ == "__main__":
-    print(f"{'method':8s} {'cells':14s} {'max|σyy+1|':>12s} {'max|p-1|':>12s} {'Newton':>7s} {'augm.':>6s}")
+    print(f"{'method':8s} {'cells':14s} {'max|σyy+1|':>12s} {'max|p-1|':>12s} "
+          f"{'Newton':>7s} {'augm.':>6s}")
     results = {}
     for cell in ("quadrilateral", "triangle"):
         for method in ("mortar", "nts"):

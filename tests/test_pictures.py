@@ -10,7 +10,8 @@ from fenicsx_mortar.pictures import (Snapshot, animation_gif, frames_png, load_s
 
 def toy(t: float) -> Snapshot:
     """Two unit squares, the upper one's bottom edge the 'slave' with pressures."""
-    pts = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0, 1.0 + t], [1, 1.0 + t], [1, 2], [0, 2]], float)
+    pts = np.array([[0, 0], [1, 0], [1, 1], [0, 1],
+                    [0, 1.0 + t], [1, 1.0 + t], [1, 2], [0, 2]], float)
     return Snapshot(time=t, points=pts, cells=np.array([[0, 1, 2, 3], [4, 5, 6, 7]]),
                     body=np.array([1, 2]), sigma=np.zeros((2, 2, 2)),
                     surface=pts[[4, 5]], segments=np.array([[0, 1]]),
@@ -68,7 +69,8 @@ def test_snapshot_of_a_solved_state(tmp_path):
     d = result.pairs[0].interface()
     assert np.allclose(s.pressure, d["pressure"]) and np.allclose(s.surface[:, 0], d["x"])
     p = s.points[s.cells]
-    area = 0.5 * np.sum(p[:, :, 0] * np.roll(p[:, :, 1], -1, 1) - np.roll(p[:, :, 0], -1, 1) * p[:, :, 1], axis=1)
+    area = 0.5 * np.sum(p[:, :, 0] * np.roll(p[:, :, 1], -1, 1)
+                        - np.roll(p[:, :, 0], -1, 1) * p[:, :, 1], axis=1)
     assert np.all(area > 0)
     assert np.isclose(area.sum(), 3.0 + 0.5, rtol=1e-2)  # slab 3 × 1 + block 1 × 0.5
     assert set(s.status[s.pressure > 0]) <= {1, 2}

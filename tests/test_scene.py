@@ -47,7 +47,8 @@ def test_good_scene_parses(tmp_path):
 
 BAD = {
     "unknown key": (GOOD.replace('title = "ok"', 'title = "ok"\ncolour = "red"'), "colour"),
-    "unknown nested key": (GOOD.replace("E = 1000.0, nu = 0.3 }", "E = 1000.0, nu = 0.3, rho = 1.0 }", 1),
+    "unknown nested key": (GOOD.replace("E = 1000.0, nu = 0.3 }",
+                                        "E = 1000.0, nu = 0.3, rho = 1.0 }", 1),
                            "bodies[0].material.rho"),
     "wrong type": (GOOD.replace("E = 1000.0", 'E = "stiff"', 1), "bodies[0].material.E"),
     "E <= 0": (GOOD.replace("E = 1000.0", "E = 0.0", 1), "bodies[0].material.E"),

@@ -32,7 +32,8 @@ def test_nts_hertz_on_matching_meshes(d):
     """NTS with the faceted master: the meshes match in the contact zone, so every slave
     node sits on a master node, where the segment normals jump; the gap blends into the
     one along the node's averaged normal (nts.BLEND). Before, a/10 failed (Newton cycled
-    at every cut of the first step). Now: converged, force balance to round-off, p₀ and a within 5 % (a/4) / 3 % (a/10)."""
+    at every cut of the first step). Now: converged, force balance to round-off, p₀ and a
+    within 5 % (a/4) / 3 % (a/10)."""
     m = hertz_metrics(hertz(HERTZ_A / d, method="nts"))
     tol = 0.05 if d == 4 else 0.03
     assert abs(m["p0_error"]) < tol

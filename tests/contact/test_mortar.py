@@ -8,8 +8,9 @@ import pytest
 
 from _chains import assemble, chain, closed_master, curved_open, jittered, rates
 from fenicsx_mortar.contact import mortar
-from fenicsx_mortar.contact.curves import Polyline
+from fenicsx_mortar.contact.curves import Polyline, make_curve
 from fenicsx_mortar.contact.kernel import nodal_sum
+from fenicsx_mortar.contact.registry import SMOOTHINGS
 from fenicsx_mortar.contact.search import candidate_pairs
 
 
@@ -199,10 +200,6 @@ def test_vectorized_cost_scales_linearly():
 
 
 # ---------------------------------------------------------------- smoothed master curves
-from fenicsx_mortar.contact.curves import make_curve
-from fenicsx_mortar.contact.registry import SMOOTHINGS  # noqa: E402
-
-
 def to_node_space(g, H, ns, point_map):
     """Map a gradient/Hessian over [slave coords, curve-point coords] to [slave coords,
     master node coords] with the curve's point map (B-spline: P = point_map @ X)."""

@@ -5,9 +5,11 @@ import pytest
 
 from _chains import assemble, chain, closed_master, curved_open, jittered, rates
 from fenicsx_mortar.contact import nts
-from fenicsx_mortar.contact.curves import Polyline
+from fenicsx_mortar.contact.curves import Polyline, make_curve
 from fenicsx_mortar.contact.kernel import nodal_sum
+from fenicsx_mortar.contact.registry import SMOOTHINGS
 from fenicsx_mortar.contact.search import candidate_pairs
+from test_mortar import smoothed_taylor_check
 
 
 def flat(delta, slave_from=3.3, slave_to=0.6, seed=2):
@@ -139,11 +141,6 @@ def test_nts_fails_the_patch_test():
 
 
 # ---------------------------------------------------------------- smoothed master curves
-from fenicsx_mortar.contact.curves import make_curve
-from fenicsx_mortar.contact.registry import SMOOTHINGS  # noqa: E402
-from test_mortar import smoothed_taylor_check  # noqa: E402
-
-
 @pytest.mark.parametrize("smoothing", SMOOTHINGS.names())
 @pytest.mark.parametrize("config", [curved_open, closed_master])
 def test_taylor_smoothed_master(config, smoothing):

@@ -116,7 +116,8 @@ def _check_finite(run: Run, where: str, obj, key: str = "") -> None:
         for i, v in enumerate(obj):
             _check_finite(run, where, v, f"{key}[{i}]")
     elif isinstance(obj, np.ndarray):
-        if obj.dtype.kind in "fc" and not np.all(np.isfinite(obj[~np.isnan(obj)] if key == "gap" else obj)):
+        if (obj.dtype.kind in "fc"
+                and not np.all(np.isfinite(obj[~np.isnan(obj)] if key == "gap" else obj))):
             run.nonfinite.append(f"{where}: {key}")
     elif isinstance(obj, float) and not math.isfinite(obj):
         run.nonfinite.append(f"{where}: {key}")
