@@ -37,7 +37,8 @@ class Bulk:
     bcs: list
     supports: list[Support]
     laws: dict[str, Law]       # body name → law
-    scaled: list[tuple[object, float, object]] = field(default_factory=list)  # (Constant, value, curve)
+    # (Constant, value, curve) of every scaled load
+    scaled: list[tuple[object, float, object]] = field(default_factory=list)
     motions: list = field(default_factory=list)  # (Function, RigidMotion, dofs, scene)
 
     def set_time(self, t: float) -> None:

@@ -2,7 +2,8 @@
 
 The displacement is stored per ORIGINAL mesh node (gmsh input numbering), so a restart may
 use another number of MPI ranks; each contact pair adds its history (ALM multipliers, NTS
-segment choices, friction reference points) through ``state_dict``/``load_state_dict``. Written atomically.
+segment choices, friction reference points) through ``state_dict``/``load_state_dict``.
+Written atomically.
 """
 from __future__ import annotations
 
@@ -62,8 +63,9 @@ def load(out: Path, comm: MPI.Comm, u, pairs) -> tuple[float, int, list[dict]]:
     msh = V.mesh
     verts = np.arange(dx.num_vertices(msh), dtype=np.int32)
     idx = dx.input_node_numbers(msh)[dx.vertex_to_geometry_node(msh)[verts]]
-    pos = np.searchsorted(data["node"], idx)
-    if np.any(pos >= len(data["node"])) or np.any(data["node"][np.minimum(pos, len(data["node"]) - 1)] != idx):
+    node = data["node"]
+    pos = np.searchsorted(node, idx)
+    if np.any(pos >= len(node)) or np.any(node[np.minimum(pos, len(node) - 1)] != idx):
         raise ValueError(f"{out / FILE} does not match this mesh")
     u.x.array[dx.vertex_dofs_all(V, verts)] = data["u"][pos]
     for i, pair in enumerate(pairs):

@@ -81,7 +81,8 @@ def save_snapshots(path: str | Path, snaps: Sequence[Snapshot]) -> None:
 
 def load_snapshots(path: str | Path) -> list[Snapshot]:
     d = np.load(path)
-    per_step = [f.name for f in fields(Snapshot) if f.name not in ("time", "cells", "body", "segments")]
+    fixed = ("time", "cells", "body", "segments")
+    per_step = [f.name for f in fields(Snapshot) if f.name not in fixed]
     return [Snapshot(time=float(t), cells=d["cells"], body=d["body"], segments=d["segments"],
                      **{k: d[k][i] for k in per_step}) for i, t in enumerate(d["time"])]
 
@@ -184,7 +185,8 @@ def frames_png(path: str | Path, snaps: Sequence[Snapshot], *, ncols: int = 2,
 
 
 def animation_gif(path: str | Path, snaps: Sequence[Snapshot], *, fps: int = 6,
-                  size: tuple[float, float] = (6.0, 4.0), label: Callable[[Snapshot], str] | None = None,
+                  size: tuple[float, float] = (6.0, 4.0),
+                  label: Callable[[Snapshot], str] | None = None,
                   **kw) -> Path:
     """The load path as a GIF (matplotlib animation, Pillow writer), common pressure scale
     and a fixed window enclosing every frame."""
@@ -200,7 +202,8 @@ def animation_gif(path: str | Path, snaps: Sequence[Snapshot], *, fps: int = 6,
         kw["window"] = (lo[0] - pad, hi[0] + pad, lo[1] - pad, hi[1] + pad)
     fig, ax = plt.subplots(figsize=size, constrained_layout=True)
     line = draw(ax, snaps[0], colorbar=False, **kw)
-    fig.colorbar(line, ax=ax, label="contact pressure", shrink=0.8, extend=_extend(snaps, line.norm))
+    fig.colorbar(line, ax=ax, label="contact pressure", shrink=0.8,
+                 extend=_extend(snaps, line.norm))
 
     def frame(i: int):
         ax.clear()

@@ -64,7 +64,7 @@ class ContactProblem:
         """Newton solves at the current loads (one per augmentation) from the current u.
         Converged: the pairs' step history is committed. Not converged: u and the history
         are restored to where the solve started, and the result says why."""
-        dx.function_vector(self.u).copy(self.solver.x)   # the user may have set u
+        self.solver.system.pull(self.solver.x)   # the user may have set u
         saved = self.solver.save_state()
         for p in self.pairs:
             p.begin_step()

@@ -169,7 +169,8 @@ def scene_pairs(scene: Scene, dom: Domain, V) -> list:
                 method=c.method, smoothing=c.smoothing, enforcement=c.enforcement.type,
                 epsilon=c.enforcement.epsilon, tolerance=c.enforcement.tolerance,
                 friction=c.friction.law, mu=c.friction.mu, E=moduli,
-                cell_tags=dom.cell_tags, n_gauss=c.n_gauss, search_radius=c.search_radius))
+                cell_tags=dom.cell_tags, n_gauss=c.n_gauss, search_radius=c.search_radius,
+                basis=c.basis))
         except ValueError as e:
             raise SceneError(f"contacts[{i}]: {e}") from None
     return pairs

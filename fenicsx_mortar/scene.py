@@ -170,6 +170,10 @@ class Contact:
     friction: Friction = field(default_factory=Friction)
     smoothing: str = "none"
     search_radius: float | None = None  # default: two slave element sizes
+    #: the weight of the weighted gaps (the multiplier space): "standard" (the slave's hat
+    #: functions) or "dual" (biorthogonal); default: dual where the multipliers are
+    #: unknowns (enforcement "lagrange") and the method offers it (mortar), else standard
+    basis: str | None = None
     n_gauss: int | None = None  # default: the master curve's (2 polyline, 4 smoothed)
 
 
@@ -323,9 +327,13 @@ class Scene:
                 if value not in registry:
                     raise SceneError(f"{key}.{name} = {value!r}: must be one of "
                                      f"{', '.join(map(repr, registry.names()))}")
+            if c.basis is not None and c.basis not in METHODS[c.method].bases:
+                raise SceneError(f"{key}.basis = {c.basis!r}: method {c.method!r} offers "
+                                 f"{', '.join(map(repr, METHODS[c.method].bases))}")
             if set(_as_list(c.slave)) & set(_as_list(c.master)):
                 raise SceneError(f"{key}: slave and master surfaces must differ "
-                                 f"(both name {sorted(set(_as_list(c.slave)) & set(_as_list(c.master)))})")
+                                 f"(both name "
+                                 f"{sorted(set(_as_list(c.slave)) & set(_as_list(c.master)))})")
             e = c.enforcement
             if e.epsilon is not None and not e.epsilon > 0:
                 raise SceneError(f"{key}.enforcement.epsilon = {e.epsilon}: must be positive")
@@ -344,7 +352,8 @@ class Scene:
         if st.count is not None and st.count < 1:
             raise SceneError(f"steps.count = {st.count}: at least one load step")
         if st.times is not None:
-            if not st.times or st.times[0] <= 0 or any(b <= a for a, b in zip(st.times, st.times[1:])):
+            if (not st.times or st.times[0] <= 0
+                    or any(b <= a for a, b in zip(st.times, st.times[1:]))):
                 raise SceneError("steps.times must be a non-empty, strictly increasing list of "
                                  "positive pseudo-times")
         if not st.end > 0:
@@ -363,7 +372,8 @@ class Scene:
             raise SceneError("solver.max_iterations must be >= 1")
         for k in sv.petsc:
             if not k.startswith(("-snes_", "-ksp_", "-pc_", "-mat_")):
-                raise SceneError(f"solver.petsc: option {k!r} is not a -snes_/-ksp_/-pc_/-mat_ option")
+                raise SceneError(f"solver.petsc: option {k!r} is not a "
+                                 "-snes_/-ksp_/-pc_/-mat_ option")
         return self
 
     def mesh_file(self) -> Path:

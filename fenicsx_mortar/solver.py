@@ -21,6 +21,7 @@ from petsc4py import PETSc
 
 from . import _dolfinx as dx
 from .scene import SolverSettings, Steps
+from .system import DisplacementSystem, MultiplierSystem
 
 
 class Hook(Protocol):
@@ -37,6 +38,7 @@ class Hook(Protocol):
     def record(self) -> dict: ...
     name: str
     path_dependent: bool                          # history (friction): the path matters
+    unknowns: int                                 # own unknowns per slave node (multipliers)
 
 
 class ActiveSetMonitor:
@@ -112,10 +114,11 @@ class NewtonSolver:
         self.residual_form, self.jacobian_form, self.bcs = residual, jacobian, bcs
         self.settings, self.hooks, self.timings = settings, hooks, timings
         self.u = u
-        self.b = dx.create_vector(residual)
-        self.A = matrix if matrix is not None else dx.create_matrix(jacobian)
-        self.x = dx.function_vector(self.u).copy()
-        self.bc_dofs = dx.bc_dofs(bcs)
+        kind = MultiplierSystem if any(h.unknowns for h in hooks) else DisplacementSystem
+        #: the unknowns and their PETSc layout (system.py)
+        self.system = kind(residual, jacobian, u, bcs, hooks, matrix)
+        self.b, self.A, self.x = self.system.b, self.system.A, self.system.x
+        self.bc_dofs = self.system.bc_dofs
         self.monitor = ActiveSetMonitor(hooks)
         self._callback_time = 0.0
         self.history: list[float] = []
@@ -149,9 +152,7 @@ class NewtonSolver:
 
     # -- SNES callbacks -------------------------------------------------------------
     def _set_iterate(self, x) -> None:
-        x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
-        x.copy(dx.function_vector(self.u))
-        self.u.x.scatter_forward()
+        self.system.push(x)
         for h in self.hooks:
             h.update(self.u)
 
@@ -167,9 +168,8 @@ class NewtonSolver:
     def _residual(self, snes, x, b) -> None:
         t0 = time.perf_counter()
         self._set_iterate(x)
-        self._timed_bulk(lambda: dx.assemble_residual(
-            b, self.residual_form, self.jacobian_form, self.bcs, x,
-            extra=self._add_hook_residuals if self.hooks else None))
+        self._timed_bulk(lambda: self.system.assemble_residual(
+            x, b, self._add_hook_residuals if self.hooks else None))
         self._callback_time += time.perf_counter() - t0
 
     def _add_hook_residuals(self, b) -> None:
@@ -179,9 +179,8 @@ class NewtonSolver:
 
     def _jacobian(self, snes, x, A, P) -> None:
         t0 = time.perf_counter()
-        self._timed_bulk(lambda: dx.assemble_jacobian(
-            A, self.jacobian_form, self.bcs,
-            extra=self._add_hook_jacobians if self.hooks else None))
+        self._timed_bulk(lambda: self.system.assemble_jacobian(
+            A, self._add_hook_jacobians if self.hooks else None))
         self._callback_time += time.perf_counter() - t0
 
     def _add_hook_jacobians(self, A) -> None:
@@ -263,7 +262,7 @@ class NewtonSolver:
 
     def unconstrained_residual(self) -> PETSc.Vec:
         """F(u) without Dirichlet modification (contact included): reactions live here."""
-        b = self.b.duplicate()
+        b = self.system.unconstrained()
         dx.assemble_unconstrained_residual(b, self.residual_form)
         for h in self.hooks:
             h.add_residual(b, np.zeros(0, dtype=np.int32))

@@ -302,6 +302,21 @@ def normal_tangent(st, d1: np.ndarray, d2: np.ndarray, hw: np.ndarray) -> sp.spm
     return st.to_nodes(K=K, rows_in_nodes=left is not None)
 
 
+def test_rows(st) -> sp.csr_matrix:
+    """(n_slave, n_test): the rows T_j over the stacked node coordinates along which node
+    j's pressure acts, −p_j T_j (∇g̃_j, or the Petrov–Galerkin test vector)."""
+    if st.gap.test is not None:
+        return test_matrix(st.gap, st.n_slave, st.n_test, st.layouts)
+    return sp.csr_matrix(st.to_nodes(K=st.G, rows_in_nodes=True))
+
+
+def pressure_rows(st, dp_dg: np.ndarray, dp_dA: np.ndarray) -> sp.csr_matrix:
+    """(n_slave, n_test): ∇p_j = ∂p/∂g̃ ∇g̃_j + ∂p/∂A ∇A_j over the stacked node
+    coordinates, for the given nodal derivatives (zero rows where they are zero)."""
+    rows = sp.diags(dp_dg) @ st.G + sp.diags(dp_dA) @ st.G_area
+    return sp.csr_matrix(st.to_nodes(K=rows, rows_in_nodes=True))
+
+
 def friction_terms(slip: NodalContributions, t: np.ndarray, dt_dg: np.ndarray,
                    dt_dp: np.ndarray, A: np.ndarray, g: np.ndarray, active: np.ndarray,
                    G: sp.spmatrix, GA: sp.spmatrix, epsilon: np.ndarray, n_slave: int,

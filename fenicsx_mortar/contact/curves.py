@@ -646,7 +646,6 @@ class BSplineParametrization:
         offset = 0
         for ch in self.chains:
             U, p, ubar, segs = ch["U"], ch["p"], ch["ubar"], ch["segs"]
-            n = len(segs)
             t_lo, t_hi = ubar[:-1], ubar[1:]
             m_lo = self._span(ch, t_lo, True)
             m_hi = self._span(ch, t_hi, False)

@@ -26,13 +26,19 @@ if TYPE_CHECKING:
 
 
 class Discretization:
-    """Base: one pair's slave and master surfaces and the method's own settings."""
+    """Base: one pair's slave and master surfaces and the method's own settings: Gauss
+    points, and the multiplier basis that weights the gaps (``bases``: those it offers)."""
 
     name = ""
+    bases: tuple[str, ...] = ("standard",)
 
-    def __init__(self, slave: Surface, master: Surface, n_gauss: int | None = None):
+    def __init__(self, slave: Surface, master: Surface, n_gauss: int | None = None,
+                 basis: str = "standard"):
+        if basis not in self.bases:
+            raise ValueError(f"method {self.name!r} has no {basis!r} multiplier basis "
+                             f"(it offers: {', '.join(self.bases)})")
         self.slave, self.master = slave, master
-        self.n_gauss = n_gauss
+        self.n_gauss, self.basis = n_gauss, basis
 
     def weighted_gaps(self, xs: np.ndarray, xm: np.ndarray, curve: MasterCurve, pairs
                       ) -> tuple[NodalContributions, NodalContributions, np.ndarray, np.ndarray]:
@@ -50,12 +56,16 @@ class Discretization:
 
 @METHODS.register("mortar")
 class Mortar(Discretization):
-    """g̃_j = ∫ N_j g dΓ, A_j = ∫ N_j dΓ over the slave segments (docs/design.md §4)."""
+    """g̃_j = ∫ ψ_j g dΓ, A_j = ∫ N_j dΓ over the slave segments (docs/design.md §4, §5a),
+    ψ = N (standard basis) or the dual basis Φ."""
+
+    bases = ("standard", "dual")
 
     def weighted_gaps(self, xs, xm, curve, pairs):
         s, m = self.slave, self.master
         gap, area = mortar.weighted_gaps(xs, s.seg, xm, m.seg, curve, pairs,
-                                         self.n_gauss or curve.gauss_points)
+                                         self.n_gauss or curve.gauss_points,
+                                         basis=self.basis)
         A = s.owned_sum(nodal_sum(area, s.n))
         # slave nodes barely supported by the master (sliding off its end) hand their
         # terms to their supported neighbour (boundary.py)
@@ -70,8 +80,9 @@ class Mortar(Discretization):
 class NodeToSegment(Discretization):
     """g̃_j = A_j g_j at the slave node's projection (docs/design.md §1, §3)."""
 
-    def __init__(self, slave: Surface, master: Surface, n_gauss: int | None = None):
-        super().__init__(slave, master, n_gauss)
+    def __init__(self, slave: Surface, master: Surface, n_gauss: int | None = None,
+                 basis: str = "standard"):
+        super().__init__(slave, master, n_gauss, basis)
         #: the master segment each slave node projected onto last (−1: none)
         self.segment = np.full(slave.n, -1, dtype=np.int64)
 

@@ -193,3 +193,94 @@ class AugmentedLagrangian(Enforcement):
     def begin_step(self) -> None:
         super().begin_step()
         self._last[:] = np.inf
+
+
+@ENFORCEMENTS.register("lagrange")
+class LagrangeMultipliers(Enforcement):
+    """The nodal pressures as unknowns λ_j of the Newton system, solved with the
+    displacements by a semi-smooth (generalized) Newton method on the Alart–Curnier
+    complementarity function (docs/design.md §5a):
+
+        R_u = R_bulk − Σ_j p_j ∇g̃_j,            p_j = ⟨λ_j − ε g̃_j/A_j⟩₊
+        C_j = s_j (λ_j − p_j) = 0               (s_j: node j's slave support length)
+
+    C_j = 0 is g̃_j ≥ 0, λ_j ≥ 0, λ_j g̃_j = 0: on the active nodes (λ_j − ε g̃_j/A_j > 0)
+    it is s_j ε g̃_j/A_j = 0, elsewhere s_j λ_j = 0. The solution does not depend on ε: it
+    only decides which nodes the next iterate treats as active, re-decided at every
+    iterate (the active set lives in the SNES callbacks; no Uzawa loop, no continuation).
+    The rows are scaled by s_j to force units, like the displacement rows, so that one
+    residual norm measures both. The u-rows are the augmented-Lagrangian law of
+    :class:`AugmentedLagrangian` with p̂ = λ (its tangent through ∂p/∂g̃, ∂p/∂A), so the
+    active nodes keep an ε-stiffness there and a body held only by contact is not singular.
+
+    Unknowns: two per slave node, (λ_n, λ_t) — the tangential one is Coulomb friction's
+    (:class:`~.friction.Coulomb`), s_j λ_t = 0 without friction — one 2×2 block per node,
+    owned by the rank that owns the node (:class:`fenicsx_mortar.system.MultiplierSystem`).
+    """
+    unknowns = 2
+
+    def __init__(self, epsilon: float, n_nodes: int, tolerance: float,
+                 gap_resolution: float = 0.0, start: float | None = None):
+        self.lam = np.zeros((n_nodes, 2))
+        # ε only steers the active set: no continuation from a softer start
+        super().__init__(epsilon, n_nodes, tolerance, gap_resolution)
+        self._converged_lam = self.lam.copy()
+        #: s_j, the rows' scale (set by the pair: each node's support length)
+        self.scale = np.ones(n_nodes)
+
+    @property
+    def multiplier(self) -> np.ndarray:
+        return self.lam[:, 0]
+
+    @multiplier.setter
+    def multiplier(self, value) -> None:
+        self.lam[:, 0] = value
+
+    def accept(self) -> None:
+        self._converged_lam = self.lam.copy()
+
+    def reject(self) -> None:
+        self.lam = self._converged_lam.copy()
+
+    def state_dict(self) -> dict[str, np.ndarray]:
+        return {"multiplier": self.lam.copy()}
+
+    def load_state_dict(self, d: dict[str, np.ndarray]) -> None:
+        self.lam = np.array(d["multiplier"], dtype=float).reshape(-1, 2)
+        self.accept()
+
+    # -- the multiplier rows ----------------------------------------------------------
+    def multiplier_residual(self, st, weight: np.ndarray) -> np.ndarray:
+        """(n, 2): C_n = s (λ_n − p) and C_t = s (λ_t − t) (t = 0 without friction), times
+        the 0/1 ``weight`` of the nodes this rank owns."""
+        t = st.tangential.t if st.tangential is not None else 0.0
+        out = np.empty_like(self.lam)
+        out[:, 0] = self.scale * (self.lam[:, 0] - st.p)
+        out[:, 1] = self.scale * (self.lam[:, 1] - t)
+        return out * weight[:, None]
+
+    def tangent(self, st, weight: np.ndarray, first: bool) -> sp.spmatrix:
+        """Over the pair's local unknowns [node coordinates (n_test), λ (2 n)]:
+
+            ∂R_u/∂u  the nodal-law tangent (base class), ∂R_u/∂λ_n,j = −a_j T_j,
+            ∂C_n,j/∂u = −s_j a_j ∇p_j,   ∂C_n,j/∂λ_n,j = s_j (1 − a_j),
+            ∂C_t,j/∂λ_t,j = s_j           (the friction law adds its own terms)
+
+        with a_j = 1 on the active nodes (∂p_j/∂λ_j), 0 elsewhere, T_j = ∇g̃_j (or the
+        Petrov–Galerkin test vector) and ∇p_j = ∂p/∂g̃ ∇g̃_j + ∂p/∂A ∇A_j."""
+        n = st.n_slave
+        K_uu = super().tangent(st, weight, first)
+        law = st.law
+        act = law.active * weight
+        T = assembly.test_rows(st)                                   # (n, n_test)
+        Gp = assembly.pressure_rows(st, law.dp_dg * act, law.dp_dA * act)   # (n, n_test)
+        s = self.scale * weight
+        lam_n = 2 * np.arange(n)
+        K_ul = sp.csr_matrix(-(T.T @ sp.diags(act)))                 # (n_test, n) → λ_n cols
+        E = sp.csr_matrix((np.ones(n), (lam_n, np.arange(n))), shape=(2 * n, n))
+        K_lu = E @ sp.csr_matrix(sp.diags(-s) @ Gp)
+        K_ll = sp.diags(np.stack([s * (1.0 - law.active), s], axis=1).ravel())
+        return sp.bmat([[K_uu, K_ul @ E.T], [K_lu, K_ll]], format="coo")
+
+    def kkt_residual(self, g: np.ndarray, A: np.ndarray, p: np.ndarray) -> float:
+        return super().kkt_residual(g, A, p)

@@ -91,6 +91,7 @@ class TangentialState(NamedTuple):
     dt_dg: np.ndarray          # ∂t/∂g_T
     dt_dp: np.ndarray          # ∂t/∂p
     proj: tuple                # (nodes, segments, ξ̄, |a|) of the slave nodes' projections
+    dt_dtrial: np.ndarray      # ∂t/∂(trial traction): ∂t/∂λ_t with multipliers
 
 
 @FRICTION_LAWS.register("none")
@@ -168,10 +169,13 @@ class Coulomb(Frictionless):
         slip = slip_contributions(xs, xm, curve, nodes, segs, self.ref_seg[nodes],
                                   self.ref_xi[nodes])
         gT = surface.owned_sum(nodal_sum(slip, surface.n))
-        t, status, dt_dg, dt_dp = self.traction(gT, st.p, st.active)
+        trial = self.epsilon_t * gT
+        if st.multipliers is not None:   # λ_t carries the traction; g_T is this step's slip
+            trial = st.multipliers[:, 1] + trial
+        t, status, dt_dtrial, dt_dp = self.traction(trial, st.p, st.active)
         _, a = curve.evaluate(segs, xi, P)
-        st.tangential = TangentialState(slip, gT, t, status, dt_dg, dt_dp,
-                                        (nodes, segs, xi, np.hypot(*a)))
+        st.tangential = TangentialState(slip, gT, t, status, self.epsilon_t * dt_dtrial,
+                                        dt_dp, (nodes, segs, xi, np.hypot(*a)), dt_dtrial)
 
     def anchor_missing(self, nodes: np.ndarray, seg: np.ndarray, xi: np.ndarray) -> None:
         """Nodes without a reference (first contact) take their current projection."""
@@ -179,9 +183,9 @@ class Coulomb(Frictionless):
         self.ref_seg[nodes[new]] = seg[new]
         self.ref_xi[nodes[new]] = xi[new]
 
-    def traction(self, gT: np.ndarray, p: np.ndarray, active: np.ndarray):
-        """(t, status, dt/dg_T, dt/dp) per node (arrays over the nodes given)."""
-        trial = self.epsilon_t * gT
+    def traction(self, trial: np.ndarray, p: np.ndarray, active: np.ndarray):
+        """The return map of the trial traction (ε_T g_T, plus λ_t with multipliers):
+        (t, status, ∂t/∂trial, ∂t/∂p) per node."""
         # Φ ≤ 0 sticks, so a node at rest (g_T = 0, p = 0: the first iterate of a body held
         # only by contact) gets the tangential stiffness instead of none
         # a node the moving cone left exactly on the cone (every slipping node at the start
@@ -191,10 +195,10 @@ class Coulomb(Frictionless):
         stick = active & ~slip
         sign = np.sign(trial)
         t = np.where(stick, trial, np.where(slip, self.mu * p * sign, 0.0))
-        dt_dg = np.where(stick, self.epsilon_t, 0.0)
+        dt_dtrial = np.where(stick, 1.0, 0.0)
         dt_dp = np.where(slip, self.mu * sign, 0.0)
         status = np.where(stick, STICK, np.where(slip, SLIP, INACTIVE))
-        return t, status, dt_dg, dt_dp
+        return t, status, dt_dtrial, dt_dp
 
     # -- contributions --------------------------------------------------------------------
     def _terms(self, st, weight: np.ndarray, epsilon, tangent: bool):
@@ -207,7 +211,28 @@ class Coulomb(Frictionless):
         return st.to_nodes(self._terms(st, weight, None, tangent=False)[0])
 
     def tangent(self, st, weight: np.ndarray, epsilon: np.ndarray) -> sp.spmatrix:
-        return st.to_nodes(K=self._terms(st, weight, epsilon, tangent=True)[1])
+        K = st.to_nodes(K=self._terms(st, weight, epsilon, tangent=True)[1])
+        if st.multipliers is None:
+            return K
+        # with multipliers (docs/design.md §5a): C_t = s (λ_t − t), t(λ_t + ε_T g_T, p(λ_n))
+        ts, n = st.tangential, st.n_slave
+        act = st.active * weight
+        A = st.A
+        GT = sp.csr_matrix(st.to_nodes(K=assembly.gradient_matrix(
+            ts.slip, n, st.n_coords, st.layouts), rows_in_nodes=True))       # (n, n_test)
+        Gp = assembly.pressure_rows(st, st.law.dp_dg * act, st.law.dp_dA * act)
+        s = st.multiplier_scale * weight
+        K_ul = sp.hstack([GT.T @ sp.diags(A * ts.dt_dp * act),          # λ_n columns
+                          GT.T @ sp.diags(A * ts.dt_dtrial * weight)])  # λ_t columns
+        even, odd = 2 * np.arange(n), 2 * np.arange(n) + 1
+        order = np.argsort(np.concatenate([even, odd]))
+        K_ul = sp.csr_matrix(K_ul)[:, order]
+        K_tu = -(sp.diags(s * ts.dt_dg) @ GT + sp.diags(s * ts.dt_dp) @ Gp)   # λ_t rows
+        E_t = sp.csr_matrix((np.ones(n), (odd, np.arange(n))), shape=(2 * n, n))
+        K_ll = sp.csr_matrix((np.concatenate([-s * ts.dt_dp * st.active, -s * ts.dt_dtrial]),
+                              (np.concatenate([odd, odd]), np.concatenate([even, odd]))),
+                             shape=(2 * n, 2 * n))
+        return sp.bmat([[K, K_ul], [E_t @ K_tu, K_ll]], format="coo")
 
     def decision(self, st) -> np.ndarray:
         ts = st.tangential
@@ -230,9 +255,15 @@ class Coulomb(Frictionless):
 
     # -- history --------------------------------------------------------------------------
     def accept(self, st) -> None:
-        """Moving cone after a converged step (see module docstring)."""
+        """Moving cone after a converged step (see module docstring); with multipliers
+        (the traction is λ_t) every node re-anchors at its projection: g_T is the slip of
+        the step."""
         ts = st.tangential
         nodes, segs, xi, length = ts.proj
+        if st.multipliers is not None:
+            self.ref_seg[nodes], self.ref_xi[nodes] = segs, xi
+            self._committed = (self.ref_seg.copy(), self.ref_xi.copy())
+            return
         t, status = ts.t[nodes], ts.status[nodes]
         ref_seg, ref_xi = self.ref_seg.copy(), self.ref_xi.copy()
         slipping = status == SLIP

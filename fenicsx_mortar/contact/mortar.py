@@ -335,6 +335,30 @@ class _Deferred:
         return out
 
 
+def _dual(q: np.ndarray) -> np.ndarray:
+    """Node-a and node-b parts (leading axis of 2) of the standard-basis integrals →
+    those of the dual basis: Φ_a = 2N_a − N_b, Φ_b = 2N_b − N_a."""
+    return np.stack([2.0 * q[0] - q[1], 2.0 * q[1] - q[0]])
+
+
+class _Dual:
+    """The deferred Hessians (or test Jacobians) of the dual-basis integrals from those of
+    the standard basis (linear in them, :func:`_dual`):
+
+        wa H(Φ_a) + wb H(Φ_b) = (2 wa − wb) H(N_a) + (2 wb − wa) H(N_b)."""
+
+    def __init__(self, standard: _Deferred):
+        self.standard = standard
+
+    def __call__(self) -> np.ndarray:
+        H = self.standard()
+        h = H.shape[0] // 2
+        return np.concatenate([2.0 * H[:h] - H[h:], 2.0 * H[h:] - H[:h]])
+
+    def weighted(self, wa: np.ndarray, wb: np.ndarray, pairs) -> np.ndarray:
+        return self.standard.weighted(2.0 * wa - wb, 2.0 * wb - wa, pairs)
+
+
 def _pair_block(X: np.ndarray, pm: np.ndarray, curve: MasterCurve, n_gauss: int,
                 ends: _Ends, test: bool = False):
     """Jet kernel for a block of contributing pairs with local coordinates X (K, m) and
@@ -342,8 +366,7 @@ def _pair_block(X: np.ndarray, pm: np.ndarray, curve: MasterCurve, n_gauss: int,
 
     Returns the integrands of the weighted gaps and, with ``test``, of the Petrov–Galerkin
     test functionals Ψ_a, Ψ_b (module docstring; else None) (:class:`_Integrand`, which
-    carries the bounds, :class:`_Bounds`), and the values ζ_g, ξ_g (n_gauss, K) and the Gauss weights
-    times the length element (n_gauss, K) for D and M. The nodal areas follow from the
+    carries the bounds, :class:`_Bounds`). The nodal areas follow from the
     bounds in closed form (:func:`_areas`). With ``test`` the jets run over [X, v] with 8
     virtual displacements v = (v_a, v_b, v_c, v_d) appended (value 0).
     """
@@ -430,7 +453,7 @@ def _areas(X: np.ndarray, bounds: _Bounds):
 def weighted_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarray,
                   master_seg: np.ndarray, curve: MasterCurve,
                   pairs: Tuple[np.ndarray, np.ndarray], n_gauss: int = 2,
-                  block: int = 2048
+                  block: int = 2048, basis: str = "standard"
                   ) -> Tuple[NodalContributions, NodalContributions]:
     """Mortar weighted gaps g̃_j and nodal areas A_j with exact derivatives, and D, M.
 
@@ -441,6 +464,10 @@ def weighted_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarr
     coordinates [x_a, y_a, x_b, y_b, stencil of the master segment], m = 2(2 + L)), and D
     (slave × slave), M (slave × master node) as COO triplets. Contribution order: node a
     of every contributing pair, then node b of every contributing pair.
+
+    ``basis``: the weight of the weighted gaps, ``"standard"`` (N_j) or ``"dual"`` (Φ_j,
+    :class:`_Dual`); the nodal areas are always A_j = ∫ N_j dΓ (positive: the scale of
+    g̃_j/A_j).
 
     The jet work runs over blocks of ``block`` pairs: the arrays then stay a few MB, which
     avoids the page-fault cost of fresh huge temporaries and stays in cache.
@@ -512,14 +539,21 @@ def weighted_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarr
     node = np.concatenate([na, nb])
     slave_nodes = np.tile(np.stack([na, nb], axis=1), (2, 1))
     master_nodes = np.tile(stencil, (2, 1))
+    hess = _Deferred(K, gap_blocks, slice(0, m), slice(0, m), (m, m))
+    jac = _Deferred(K, test_blocks, slice(m, m + 8), slice(0, m), (8, m)) if test else None
+    if basis == "dual":
+        val[0], grad[0] = _dual(val[0]), _dual(grad[0])
+        hess = _Dual(hess)
+        if test:
+            tgrad, jac = _dual(tgrad), _Dual(jac)
+    elif basis != "standard":
+        raise ValueError(f"unknown multiplier basis {basis!r}; expected 'standard' or 'dual'")
     gap = NodalContributions(node, slave_nodes, master_nodes, val[0].reshape(2 * K),
-                             grad[0].reshape(2 * K, m),
-                             _Deferred(K, gap_blocks, slice(0, m), slice(0, m), (m, m)))
+                             grad[0].reshape(2 * K, m), hess)
     mc, md = master_seg[pm, 0], master_seg[pm, 1]
     if test:
         gap.test = MasterTest(np.tile(np.stack([na, nb, mc, md], axis=1), (2, 1)),
-                              tgrad.reshape(2 * K, 8),
-                              _Deferred(K, test_blocks, slice(m, m + 8), slice(0, m), (8, m)))
+                              tgrad.reshape(2 * K, 8), jac)
     area = NodalContributions(node.copy(), slave_nodes.copy(), master_nodes.copy(),
                               val[1].reshape(2 * K), grad[1].reshape(2 * K, m), area_hessian)
 

@@ -20,7 +20,7 @@ from mpi4py import MPI
 from scipy.spatial import cKDTree
 
 from .. import _dolfinx as dx
-from . import assembly
+from . import assembly, boundary
 from .curves import make_curve
 from .registry import ENFORCEMENTS, FRICTION_LAWS, METHODS
 from .search import candidate_pairs
@@ -45,7 +45,8 @@ class ContactPair:
                  enforcement: str = "alm", epsilon: float | None = None,
                  tolerance: float = 1e-10, friction: str = "none", mu: float = 0.0,
                  E: float | Mapping[int, float] | None = None, cell_tags=None,
-                 n_gauss: int | None = None, search_radius: float | None = None):
+                 n_gauss: int | None = None, search_radius: float | None = None,
+                 basis: str | None = None):
         self.name = name
         self.slave = build_surface(V, facet_tags, slave, f"{name}:slave", cell_tags)
         self.master = build_surface(V, facet_tags, master, f"{name}:master", cell_tags)
@@ -69,7 +70,14 @@ class ContactPair:
         scale = max(np.abs(s.X).max(initial=0.0), np.abs(m.X).max(initial=0.0), h)
         self.enforcement = ENFORCEMENTS[enforcement](
             eps, s.n, tolerance, 32 * np.finfo(float).eps * scale, start=nominal)
-        self.discretization = METHODS[method](s, m, n_gauss)
+        #: unknowns of the pair's own per slave node (the enforcement's multipliers), 0: none
+        self.unknowns = int(getattr(self.enforcement, "unknowns", 0))
+        if self.unknowns:
+            self.enforcement.scale = boundary.full_areas(s.X, s.seg, s.n)
+        kind = METHODS[method]
+        if basis is None:   # the dual basis where the multipliers are unknowns
+            basis = "dual" if self.unknowns and "dual" in kind.bases else "standard"
+        self.discretization = kind(s, m, n_gauss, basis=basis)
         self.friction = FRICTION_LAWS[friction](mu, self.enforcement.epsilon0, s.n)
         self.smoothing = smoothing
         self.radius = search_radius or 2.0 * h
@@ -77,8 +85,6 @@ class ContactPair:
         # the master curve: rebuilt from the converged nodes at each load step (the B-spline
         # freezes its parametrization there, docs/design.md §6), moved with the nodes in between
         self._curve = make_curve(smoothing, m.X, m.seg)
-        self.n_global = dx.dof_count(V)
-        self._l2g = dx.local_to_global_dofs(V)
         self.weight = s.owned.astype(float)
         # this rank integrates the slave segments touching the nodes whose dofs it owns: the
         # weighted gaps of those nodes are then complete here (one segment of overlap at
@@ -87,7 +93,7 @@ class ContactPair:
         self.layouts = assembly.Layouts()
         self.augmentations = 0
         self._first_jacobian = True
-        self._skip = None
+        self.index, self.skip, self.n_global = self.dofs, np.zeros(0, np.int64), dx.dof_count(V)
         self.state: ContactState | None = None
         self.timings = None
 
@@ -120,6 +126,8 @@ class ContactPair:
             curve = self._curve.with_nodes(xm)
             gap, area, g, A = self.discretization.weighted_gaps(xs, xm, curve, pairs)
         st = ContactState(xs, xm, curve, pairs, gap, area, g, A, self.layouts)
+        if self.unknowns:
+            st.multipliers, st.multiplier_scale = self.enforcement.lam, self.enforcement.scale
         st.law = self.enforcement.pressure(g, A)
         self.friction.update(st, s)
         return st
@@ -145,15 +153,25 @@ class ContactPair:
                   self.friction.tangent(st, w, self.enforcement.epsilon)])
         self._first_jacobian = False
         with self._timed("contact_insertion"):
-            assembly.add_to_matrix(A, K, self.dofs, self._skip_dofs(bc_dofs), self.n_global,
-                                   self.layouts)
+            assembly.add_to_matrix(A, K, self.index, self.skip, self.n_global, self.layouts)
 
-    def _skip_dofs(self, bc_dofs) -> np.ndarray:
-        if self._skip is None:
-            local = np.asarray(bc_dofs)
-            g = self._l2g[local] if len(local) else np.zeros(0, dtype=np.int64)
-            self._skip = np.unique(np.concatenate(self.slave.comm.allgather(g)))
-        return self._skip
+    def attach(self, index: np.ndarray, skip: np.ndarray, n_global: int) -> None:
+        """Where the pair's local unknowns — the stacked node coordinates [slave, master],
+        then its multipliers — sit in the global system (``index``), the global rows and
+        columns to leave out (Dirichlet), and the global size (:mod:`fenicsx_mortar.system`)."""
+        self.index, self.skip, self.n_global = index, skip, n_global
+
+    # -- the pair's own unknowns (multipliers) ----------------------------------------------
+    def multipliers(self) -> np.ndarray:
+        """(n_slave, unknowns) current values of the pair's own unknowns."""
+        return self.enforcement.lam
+
+    def set_multipliers(self, lam: np.ndarray) -> None:
+        self.enforcement.lam = lam
+
+    def multiplier_residual(self) -> np.ndarray:
+        """(n_slave, unknowns) the rows of the pair's own unknowns (this rank's nodes)."""
+        return self.enforcement.multiplier_residual(self.state, self.weight)
 
     def kkt_residual(self) -> float:
         st = self.state
@@ -226,6 +244,11 @@ class ContactPair:
         """Per slave node: the node blocks (global) its weighted gap can depend on — its
         neighbours and the stencils of the master candidates of its segments, found with a
         generous radius — for the matrix's sparsity pattern."""
+        return [np.unique(d // 2) for d in self.couplings_by_node()]
+
+    def couplings_by_node(self) -> list[np.ndarray]:
+        """For slave node j (list index): the global dofs its terms can depend on (see
+        :meth:`couplings`)."""
         s, m = self.slave, self.master
         ps, pm = candidate_pairs(s.X, s.seg, m.X, m.seg, 3.0 * self.radius)
         curve = self._curve
@@ -244,10 +267,9 @@ class ContactPair:
             a, b = s.seg[seg_i]
             for j in (a, b):
                 per_node[int(j)].update(int(i) + s.n for i in stencil[k])
-        bs = 2
-        node_block = np.concatenate([s.dofs[:, 0], m.dofs[:, 0]]) // bs
-        return [np.unique(node_block[np.fromiter(nodes, dtype=np.int64)])
-                for nodes in per_node.values()]
+        node_dofs = np.concatenate([s.dofs, m.dofs])
+        return [np.unique(node_dofs[np.fromiter(per_node.get(j, ()), dtype=np.int64)])
+                for j in range(s.n)]
 
 
 class _Untimed:

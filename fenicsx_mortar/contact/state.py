@@ -34,6 +34,8 @@ class ContactState:
     A: np.ndarray                  # (n_slave,) A_j
     layouts: assembly.Layouts = field(repr=False)
     law: "NodalPressure | None" = None           # p_j and its derivatives (enforcement)
+    multipliers: np.ndarray | None = None        # (n_slave, 2) λ_n, λ_t when unknowns
+    multiplier_scale: np.ndarray | None = None   # s_j of the multiplier rows
     tangential: "TangentialState | None" = None  # friction
 
     @property

@@ -15,12 +15,13 @@ from fenicsx_mortar.problem import ContactProblem
 from fenicsx_mortar.run import scene_pairs
 
 
-def system(method: str, enforcement: str, mu: float = 0.0, smoothing: str = "none"):
+def system(method: str, enforcement: str, mu: float = 0.0, smoothing: str = "none",
+           basis: str | None = None):
     scene = load_scene(ROOT / "demos/scenes/patch_test.toml")
     scene.mesh.params = {"lower_nx": 8, "lower_ny": 4, "upper_nx": 10, "upper_ny": 2}
     c = scene.contacts[0]
     c.method, c.enforcement.type, c.enforcement.epsilon = method, enforcement, 1e4
-    c.smoothing = smoothing
+    c.smoothing, c.basis = smoothing, basis
     if mu > 0:
         c.friction.law, c.friction.mu = "coulomb", mu
     dom = build_domain(scene)
@@ -115,5 +116,66 @@ def test_taylor_remainder_with_friction(method, state):
         assert on.sum() >= 5 and np.all(st.tangential.status[on] == want)
 
     hs, rem = taylor_remainders(solver, hook, rng, check)
+    rates = np.diff(np.log(rem)) / np.diff(np.log(hs))
+    assert np.all(rates > 1.8), (rem, rates)
+
+
+def multiplier_state(solver, pair, shift: float, rng, lam_t: float = 0.0) -> None:
+    """solver.x at :func:`upper_block_state` with multipliers λ_n ∈ [0.5, 1.5] (and λ_t of
+    size ``lam_t``) on every slave node."""
+    solver.u.x.array[:] = upper_block_state(solver, shift, rng)
+    lam = np.column_stack([rng.uniform(0.5, 1.5, pair.slave.n),
+                           lam_t * rng.uniform(-1.0, 1.0, pair.slave.n)])
+    pair.set_multipliers(lam)
+    solver.system.pull(solver.x)
+
+
+@pytest.mark.parametrize("smoothing", ["none", "averaged-tangent", "hermite", "bspline"])
+@pytest.mark.parametrize("basis", ["dual", "standard"])
+def test_taylor_remainder_with_multipliers(basis, smoothing):
+    """Lagrange multipliers as unknowns (mortar): the system over [u, λ] — the u-rows with
+    the augmented pressure ⟨λ − ε g̃/A⟩₊, the multiplier rows s (λ − p) — has its exact
+    tangent, the multiplier blocks included, for both bases."""
+    solver, pair = system("mortar", "lagrange", smoothing=smoothing, basis=basis)
+    assert pair.discretization.basis == basis
+    rng = np.random.default_rng(11)
+    multiplier_state(solver, pair, 0.013, rng)
+    hs, rem = taylor_remainders(solver, pair, rng,
+                                lambda st: st.active.sum() >= 5 or pytest.fail("few active"))
+    rates = np.diff(np.log(rem)) / np.diff(np.log(hs))
+    assert np.all(rates > 1.8), (rem, rates)
+
+
+def test_taylor_remainder_with_multipliers_nts():
+    solver, pair = system("nts", "lagrange")
+    rng = np.random.default_rng(12)
+    multiplier_state(solver, pair, 0.013, rng)
+    hs, rem = taylor_remainders(solver, pair, rng,
+                                lambda st: st.active.sum() >= 5 or pytest.fail("few active"))
+    rates = np.diff(np.log(rem)) / np.diff(np.log(hs))
+    assert np.all(rates > 1.8), (rem, rates)
+
+
+@pytest.mark.parametrize("state", ["stick", "slip"])
+@pytest.mark.parametrize("method", ["mortar", "nts"])
+def test_taylor_remainder_with_multipliers_and_friction(method, state):
+    """Coulomb μ = 0.3 with the tangential multiplier: the trial traction λ_t + ε_T g_T
+    (g_T the slip since the anchoring), stick (all nodes) with a small λ_t and a small
+    slide, slip (all nodes) with a large slide; the blocks of λ_t and the λ_n → t coupling
+    of slip included."""
+    solver, pair = system(method, "lagrange", mu=0.3)
+    rng = np.random.default_rng(5)
+    x, b = solver.x, solver.x.duplicate()
+    multiplier_state(solver, pair, 0.0005, rng, lam_t=0.01)
+    solver._residual(None, x, b)  # anchors the reference points here
+    multiplier_state(solver, pair, 0.0005 + (1e-9 if state == "stick" else 0.013), rng,
+                     lam_t=0.01)
+    want = 1 if state == "stick" else 2
+
+    def check(st):
+        on = st.active
+        assert on.sum() >= 5 and np.all(st.tangential.status[on] == want)
+
+    hs, rem = taylor_remainders(solver, pair, rng, check)
     rates = np.diff(np.log(rem)) / np.diff(np.log(hs))
     assert np.all(rates > 1.8), (rem, rates)

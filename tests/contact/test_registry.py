@@ -62,15 +62,13 @@ class Tresca(Coulomb):
     """Tresca friction: the tangential traction is bounded by a constant shear strength τ
     (the scene's ``mu`` read as τ), not by μ p."""
 
-    def traction(self, gT, p, active):
-        trial = self.epsilon_t * gT
+    def traction(self, trial, p, active):
         tau = self.mu
         slip = active & (np.abs(trial) > tau)
         stick = active & ~slip
         t = np.where(stick, trial, np.where(slip, tau * np.sign(trial), 0.0))
-        dt_dg = np.where(stick, self.epsilon_t, 0.0)
         status = np.where(stick, STICK, np.where(slip, SLIP, INACTIVE))
-        return t, status, dt_dg, np.zeros_like(t)
+        return t, status, np.where(stick, 1.0, 0.0), np.zeros_like(t)
 
 
 @pytest.fixture
