@@ -56,6 +56,16 @@ SCENES = {
          "1.5, 1.55, 1.6, 1.65, 1.7, 1.75, 1.8, 1.85, 1.9, 1.95, 2.0]",
          "times = [0.5, 1.0, 1.05, 1.1]"))),
 }
+# the same contact scenes with Lagrange multipliers as unknowns (semi-smooth Newton, dual
+# basis): each multiplier is owned by the rank owning its slave node
+_LAGRANGE = ('enforcement = { type = "alm" }', 'enforcement = { type = "lagrange" }')
+for _name in ("patch_test", "hertz", "block_on_slab", "half_rings"):
+    _stem, _edits = SCENES[_name]
+    if any(_LAGRANGE[0] in old for old, _ in _edits):
+        _edits = tuple((old, new.replace(*_LAGRANGE)) for old, new in _edits)
+    else:
+        _edits = _edits + (_LAGRANGE,)
+    SCENES[f"{_name}_lagrange"] = (_stem, _edits)
 
 # (scene, ranks, tolerance): bulk alone to 1e-10, with contact to 1e-8
 CASES = [
@@ -70,6 +80,10 @@ CASES = [
     ("block_on_slab", 3, 1e-8),
     ("half_rings", 2, 1e-8),
     ("half_rings", 3, 1e-8),
+    ("patch_test_lagrange", 2, 1e-8),
+    ("hertz_lagrange", 2, 1e-8),
+    ("block_on_slab_lagrange", 2, 1e-8),
+    ("half_rings_lagrange", 2, 1e-8),
 ]
 
 

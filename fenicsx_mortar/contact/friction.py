@@ -151,6 +151,8 @@ class Coulomb(Frictionless):
         self.ref_xi = np.zeros(n_slave)
         self._committed = (self.ref_seg.copy(), self.ref_xi.copy())
         self._segment = np.full(n_slave, -1, dtype=np.int64)  # last projection segment
+        self._status = np.full(n_slave, INACTIVE)   # each node's status at the last step
+        self._g0 = np.zeros(n_slave)                 # g_T at the anchor (multipliers)
 
     # -- kinematics ---------------------------------------------------------------------
     def update(self, st, surface) -> None:
@@ -169,10 +171,18 @@ class Coulomb(Frictionless):
         slip = slip_contributions(xs, xm, curve, nodes, segs, self.ref_seg[nodes],
                                   self.ref_xi[nodes])
         gT = surface.owned_sum(nodal_sum(slip, surface.n))
-        trial = self.epsilon_t * gT
-        if st.multipliers is not None:   # λ_t carries the traction; g_T is this step's slip
-            trial = st.multipliers[:, 1] + trial
+        self._surface = surface
+        if st.multipliers is not None:
+            # λ_t carries the traction; g_T is the slip since the last step's end (from where
+            # the anchoring left it: see accept)
+            gT = gT - self._g0
+            trial = st.multipliers[:, 1] + self.epsilon_t * gT
+        else:
+            trial = self.epsilon_t * gT
         t, status, dt_dtrial, dt_dp = self.traction(trial, st.p, st.active)
+        if st.multipliers is not None:
+            t, status, dt_dtrial, dt_dp = self._on_the_cone(trial, st.p, t, status,
+                                                            dt_dtrial, dt_dp)
         _, a = curve.evaluate(segs, xi, P)
         st.tangential = TangentialState(slip, gT, t, status, self.epsilon_t * dt_dtrial,
                                         dt_dp, (nodes, segs, xi, np.hypot(*a)), dt_dtrial)
@@ -198,6 +208,21 @@ class Coulomb(Frictionless):
         dt_dtrial = np.where(stick, 1.0, 0.0)
         dt_dp = np.where(slip, self.mu * sign, 0.0)
         status = np.where(stick, STICK, np.where(slip, SLIP, INACTIVE))
+        return t, status, dt_dtrial, dt_dp
+
+    def _on_the_cone(self, trial, p, t, status, dt_dtrial, dt_dp):
+        """A node exactly on the cone (to 1e-9 μp) keeps the status it converged to in the
+        last step. With multipliers every node that slipped starts the next step there
+        (λ_t = μ p, no slip yet): taking it for sticking makes the first Newton step hold
+        the whole increment as elastic drag; the history, not round-off, decides."""
+        tie = (status != INACTIVE) & (np.abs(np.abs(trial) - self.mu * p) <= 1e-9 * self.mu * p)
+        keep = tie & (self._status == SLIP) & (status == STICK)
+        if keep.any():
+            sign = np.sign(trial)
+            t = np.where(keep, self.mu * p * sign, t)
+            dt_dtrial = np.where(keep, 0.0, dt_dtrial)
+            dt_dp = np.where(keep, self.mu * sign, dt_dp)
+            status = np.where(keep, SLIP, status)
         return t, status, dt_dtrial, dt_dp
 
     # -- contributions --------------------------------------------------------------------
@@ -263,6 +288,17 @@ class Coulomb(Frictionless):
         if st.multipliers is not None:
             self.ref_seg[nodes], self.ref_xi[nodes] = segs, xi
             self._committed = (self.ref_seg.copy(), self.ref_xi.copy())
+            self._status = ts.status.copy()
+            # g_T measured from the new anchor is not exactly 0 where the slip direction is
+            # not the segment's tangent (faceted curves, slip_direction): remember it, so
+            # that the next step starts at g_T = 0 and a node on the cone stays on it
+            P = st.curve.split_points(st.curve.local_points(segs, st.xm))
+            x_ref, a = st.curve.evaluate(segs, xi, P)
+            t_hat = slip_direction(st.curve, segs, xi, P, a)
+            g0 = np.zeros(st.n_slave)
+            g0[nodes] = ((st.xs[nodes, 0] - x_ref[0]) * t_hat[0]
+                         + (st.xs[nodes, 1] - x_ref[1]) * t_hat[1])
+            self._g0 = self._surface.owned_sum(g0)
             return
         t, status = ts.t[nodes], ts.status[nodes]
         ref_seg, ref_xi = self.ref_seg.copy(), self.ref_xi.copy()

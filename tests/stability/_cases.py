@@ -31,6 +31,7 @@ RUNS = {
     "9b mu = 1e-6": "c09b_vanishing_friction.toml",
     "10 active-set cycling": "c10_active_set_cycling.toml",
     "11 touching, huge R0": "c11_touching_huge_residual.toml",
+    "12 stiff slave, press + slide": "c12_stiff_slave_press_and_slide.toml",
 }
 
 # (max Newton iterations in one step, max step cuts in the run), about 1.5x what a healthy
@@ -52,6 +53,9 @@ BOUNDS = {
     "9b mu = 1e-6": (36, 0),
     "10 active-set cycling": (25, 0),
     "11 touching, huge R0": (25, 0),
+    # semi-smooth Newton with multipliers: the active and stick/slip sets settle within
+    # each Newton solve (5-7 iterations a step), never by a step cut
+    "12 stiff slave, press + slide": (12, 0),
 }
 
 LOGS: dict[str, list[str]] = {}

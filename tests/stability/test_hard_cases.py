@@ -329,3 +329,21 @@ def test_case11_relative_decrease_alone_does_not_converge():
         for s in run.result.steps:
             assert s["residuals"][-1] <= atol and s["residuals"][-1] <= rtol * s["residuals"][0]
         check_uniform(run, P=1000.0)
+
+
+# ---------------------------------------------------------------------------- 12 stiff slave
+def test_case12_stiff_slave_press_and_slide_settles_in_newton():
+    """The 10x stiffer tool as slave (arc and sides), mu = 0.5, pressed and slid at once,
+    Lagrange multipliers (semi-smooth Newton): converged, finite, <= 12 Newton iterations a
+    step and no step cut (the front node's active and stick/slip state settles inside the
+    Newton loop). Physics: every slipping node on the cone, |t_T| = mu p (1e-8), and the
+    tangential contact force mu times the normal one once every active node slips."""
+    run = check_stable("12 stiff slave, press + slide", None)
+    d = run.interfaces[-1]
+    on = d["pressure"] > 0
+    slip = on & (d["status"] == "slip")
+    assert slip.sum() >= 5
+    assert np.allclose(np.abs(d["t_tangential"][slip]), 0.5 * d["pressure"][slip], rtol=1e-8)
+    c = contact(run)
+    if c["stick_nodes"] == 0:
+        assert abs(c["tangential_force"]) == pytest.approx(0.5 * c["normal_force"], rel=1e-8)
