@@ -142,10 +142,11 @@ class Traction:
 
 @dataclass
 class Enforcement:
-    """Normal-contact enforcement: a registered name (``ENFORCEMENTS``: penalty, alm, …).
-    docs/design.md §5."""
-    type: str = "alm"
-    epsilon: float | None = None  # default E/h (slave body); ALM starts at min(epsilon, E/h)
+    """Normal-contact enforcement: a registered name (``ENFORCEMENTS``: lagrange, penalty,
+    alm, …). docs/design.md §5, §5a."""
+    type: str = "lagrange"
+    # default E/h (slave body; lagrange: the softer body's); ALM starts at min(epsilon, E/h)
+    epsilon: float | None = None
     tolerance: float = 1e-10      # ALM: KKT residual (relative to the pressure scale)
     max_augmentations: int = 30
 

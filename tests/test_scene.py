@@ -42,7 +42,7 @@ def test_good_scene_parses(tmp_path):
     scene = load_scene(write(tmp_path, GOOD))
     assert [b.name for b in scene.bodies] == ["block", "slab"]
     assert scene.contacts[0].method == "mortar"
-    assert any(e.startswith("contact c: mortar, alm") for e in scene.effects())
+    assert any(e.startswith("contact c: mortar, lagrange") for e in scene.effects())
 
 
 BAD = {

