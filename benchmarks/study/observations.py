@@ -8,6 +8,10 @@ from .cases import ENFORCEMENTS, ERRORS, METHODS, SMOOTHINGS
 from .records import key, num, valid
 from .tables import ERROR_LABELS, STATUS_MARK
 
+#: the enforcements that close the gap exactly, and the penalties
+EXACT = [e for e in ENFORCEMENTS if not e.startswith("penalty")]
+PENALTIES = [e for e in ENFORCEMENTS if e.startswith("penalty")]
+
 
 def observations(rows: list[dict], benches: list[str]) -> list[str]:
     lines = ["## What the numbers say", ""]
@@ -23,14 +27,16 @@ def observations(rows: list[dict], benches: list[str]) -> list[str]:
         for m in METHODS:
             for group, smooth in (("none / averaged-*", SMOOTHINGS[:4]),
                                   ("hermite / bspline", SMOOTHINGS[4:])):
-                rs = [r for r in pick(benchmark="patch", method=m, enforcement="alm")
-                      if r["smoothing"] in smooth]
-                x = rng(rs, "err_sigma_yy")
-                if x:
-                    lines.append(f"* B1, {m} + alm, {group}: max |σ_yy + 1| from {x[0]:.1e} to "
-                                 f"{x[1]:.1e} over {x[2]} converged runs (all levels).")
+                for e in EXACT:
+                    rs = [r for r in pick(benchmark="patch", method=m, enforcement=e)
+                          if r["smoothing"] in smooth]
+                    x = rng(rs, "err_sigma_yy")
+                    if x:
+                        lines.append(f"* B1, {m} + {e}, {group}: max |σ_yy + 1| from "
+                                     f"{x[0]:.1e} to {x[1]:.1e} over {x[2]} converged runs "
+                                     "(all levels).")
         for m in METHODS:
-            for e in ENFORCEMENTS[:3]:
+            for e in PENALTIES:
                 x = rng(pick(benchmark="patch", method=m, enforcement=e, smoothing="none"),
                         "err_sigma_yy")
                 if x:
@@ -40,13 +46,14 @@ def observations(rows: list[dict], benches: list[str]) -> list[str]:
             continue
         for m in METHODS:
             for s in SMOOTHINGS:
-                rs = sorted(pick(benchmark=b, method=m, smoothing=s, enforcement="alm"),
-                            key=lambda r: r["level"])
-                seq = [f"{r['err_l2']:.3f}" if valid(r, "err_l2") else
-                       STATUS_MARK.get(r["status"], "?") for r in rs]
-                if len(rs) > 1:
-                    lines.append(f"* {b}, {m} + {s} + alm, L2 error over the levels: "
-                                 + " → ".join(seq) + ".")
+                for e in EXACT:
+                    rs = sorted(pick(benchmark=b, method=m, smoothing=s, enforcement=e),
+                                key=lambda r: r["level"])
+                    seq = [f"{r['err_l2']:.3f}" if valid(r, "err_l2") else
+                           STATUS_MARK.get(r["status"], "?") for r in rs]
+                    if len(rs) > 1:
+                        lines.append(f"* {b}, {m} + {s} + {e}, L2 error over the levels: "
+                                     + " → ".join(seq) + ".")
     if "half_rings" in benches:
         for s in SMOOTHINGS:
             rs = pick(benchmark="half_rings", smoothing=s)
@@ -56,25 +63,27 @@ def observations(rows: list[dict], benches: list[str]) -> list[str]:
                 lines.append(f"* half_rings, {s}: {len(rs) - n_bad} of {len(rs)} runs converged"
                              + (f"; oscillation {osc[0]:.1e} … {osc[1]:.1e}" if osc else "")
                              + ".")
-    # ALM against the softest penalty: same benchmark, method, smoothing and level
+    # one enforcement against another: same benchmark, method, smoothing and level
     by_key = {key(r): r for r in rows}
-    for b in benches:
-        err = ERRORS[b][0]
-        cpu, acc = [], []
-        for r in rows:
-            if r["benchmark"] != b or r["enforcement"] != "alm" or r["status"] != "converged":
-                continue
-            p = by_key.get(key(r)[:3] + ("penalty-1", r["level"]))
-            if p is not None and p["status"] == "converged" and num(p["cpu_time"]) > 0:
-                cpu.append(num(r["cpu_time"]) / num(p["cpu_time"]))
-                if valid(r, err) and valid(p, err) and p[err] > 0 and not r.get("reference"):
-                    acc.append(r[err] / p[err])
-        if cpu:
-            lines.append(f"* {b}: `alm` takes {statistics.median(cpu):.1f}× the CPU time of "
-                         f"`penalty-1` (median over {len(cpu)} pairs of runs that differ only in "
-                         "the enforcement)" + (f"; its {ERROR_LABELS[err]} is "
-                                                f"{statistics.median(acc):.2g}× the penalty's"
-                                                if acc else "") + ".")
+    for a, other in (("lagrange", "penalty-1"), ("alm", "penalty-1"), ("lagrange", "alm")):
+        for b in benches:
+            err = ERRORS[b][0]
+            cpu, acc = [], []
+            for r in rows:
+                if r["benchmark"] != b or r["enforcement"] != a or r["status"] != "converged":
+                    continue
+                p = by_key.get(key(r)[:3] + (other, r["level"]))
+                if p is not None and p["status"] == "converged" and num(p["cpu_time"]) > 0:
+                    cpu.append(num(r["cpu_time"]) / num(p["cpu_time"]))
+                    if (valid(r, err) and valid(p, err) and p[err] > 0
+                            and not r.get("reference") and not p.get("reference")):
+                        acc.append(r[err] / p[err])
+            if cpu:
+                lines.append(f"* {b}: `{a}` takes {statistics.median(cpu):.2g}× the CPU time "
+                             f"of `{other}` (median over {len(cpu)} pairs of runs that differ "
+                             "only in the enforcement)"
+                             + (f"; its {ERROR_LABELS[err]} is {statistics.median(acc):.2g}× "
+                                f"`{other}`'s" if acc else "") + ".")
     for b in benches:
         for m in METHODS:
             rs = [r for r in rows if r["benchmark"] == b and r["method"] == m]

@@ -30,8 +30,8 @@ def make_scene(case: Case, times: list[float] | None = None) -> Scene:
         pair.slave, pair.master = pair.master, pair.slave
     pair.method, pair.smoothing = case.method, case.smoothing
     tol = pair.enforcement.tolerance
-    if case.enforcement == "alm":
-        pair.enforcement = Enforcement(type="alm", tolerance=tol)
+    if case.enforcement in ("alm", "lagrange"):
+        pair.enforcement = Enforcement(type=case.enforcement, tolerance=tol)
     else:
         factor = float(case.enforcement.split("-")[1])
         pair.enforcement = Enforcement(type="penalty", epsilon=factor * slave_modulus(scene) / lv.h,
