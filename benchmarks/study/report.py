@@ -198,7 +198,8 @@ def _definitions(meta: dict) -> list[str]:
         "2.6 %, p₀ 0.6 % at a/20).",
         "* **B3** the hub reaction (R_x, R_y) at the 14 load-step times: error = max_t "
         "|R − R_ref| / max_t |R_ref| against the reference = the finest-level bspline + mortar "
-        "+ lagrange run of the same study (its own error is 0, shown as \"ref.\"); oscillation = the "
+        "+ lagrange run of the same study (its own error is 0, shown as \"ref.\"); "
+        "oscillation = the "
         "largest distance of R(t) over the turn from its least-squares cubic in t, over "
         "max |R| (a smooth curve gives ~0, a curve that wiggles as slave nodes pass master "
         "nodes gives the wiggle's relative size).",
