@@ -20,6 +20,10 @@ fi
 if [ ! -x .venv/bin/python ]; then
   /usr/bin/python3 -m venv --system-site-packages .venv
 fi
+# The lint step's tool (CI runs `ruff check .`), from PyPI into the venv.
+if [ ! -x .venv/bin/ruff ]; then
+  .venv/bin/python -m pip install -q ruff
+fi
 # Re-install only when the project metadata changed (editable install: code changes need nothing).
 stamp=.venv/.fenicsx_mortar-installed
 if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
