@@ -6,9 +6,9 @@ polygon of n nodes on it (clockwise, so that n = e3 × t points outward), and, f
 chain ends, an open quarter arc (the end segments' errors reported apart from the
 interior's). Slave points lie at a known signed distance ±d from the circle (outside:
 gap +d, inside: gap −d) at random angles. Each smoothing computes the gap as the contact
-kernels do — the projection onto the curve (closest point, or along the smoothed normal for the averaged-normal variants),
-then g = (x_s − x(ξ̄))·n(ξ̄) on that segment — and its error against the exact gap is
-reported (maximum over all points), for n = 8, 16, 32, 64.
+kernels do — the projection onto the curve (closest point, or along the smoothed normal
+for the averaged-normal variants), then g = (x_s − x(ξ̄))·n(ξ̄) on that segment — and its
+error against the exact gap is reported (maximum over all points), for n = 8, 16, 32, 64.
 
     .venv/bin/python benchmarks/gap_accuracy.py
 """
