@@ -1,9 +1,11 @@
 """B2 Hertz: half-disk resting on a block, refined around the contact point (0, 0)."""
 from __future__ import annotations
 
+import math
+
 import gmsh
 
-_CELLS = ("quadrilateral", "triangle")
+from . import _checks
 
 
 def build(model, *, cell: str = "quadrilateral", h_contact: float = 0.05, h_far: float = 0.1,
@@ -24,9 +26,9 @@ def build(model, *, cell: str = "quadrilateral", h_contact: float = 0.05, h_far:
     Parameters (keyword only, defaults in brackets):
         cell:          "quadrilateral" [default] or "triangle".
         h_contact:     element size near the contact point [0.05], > 0.
-        h_far:         element size away from it [0.1], >= h_contact.
-        R:             half-disk radius [1.0], > 0.
-        refine_radius: radius of the uniformly refined zone around (0, 0) [0.15], >= 0.
+        h_far:         element size away from it [0.1], >= h_contact, <= min(R, 1)/4.
+        R:             half-disk radius [1.0], in [1e-3, 1e3].
+        refine_radius: radius of the uniformly refined zone around (0, 0) [0.15], in [0, 1e3].
 
     Physical groups (tags in brackets):
         dim 2: "disk" [1], "block" [2].
@@ -39,16 +41,7 @@ def build(model, *, cell: str = "quadrilateral", h_contact: float = 0.05, h_far:
     (0, 0.5) for R = 1), (0, 0) on the disk arc AND on the block top (one node each), and
     (0, -1) (block bottom).
     """
-    if cell not in _CELLS:
-        raise ValueError(f"cell must be one of {_CELLS}, got {cell!r}")
-    for name, value in (("h_contact", h_contact), ("h_far", h_far), ("R", R)):
-        if not value > 0:
-            raise ValueError(f"{name} must be > 0, got {value!r}")
-    if not h_far >= h_contact:
-        raise ValueError(f"h_far must be >= h_contact, got h_far={h_far!r}, "
-                         f"h_contact={h_contact!r}")
-    if not refine_radius >= 0:
-        raise ValueError(f"refine_radius must be >= 0, got {refine_radius!r}")
+    cells(cell=cell, h_contact=h_contact, h_far=h_far, R=R, refine_radius=refine_radius)
     _set_options(cell)
     occ = model.occ
 
@@ -93,6 +86,36 @@ def build(model, *, cell: str = "quadrilateral", h_contact: float = 0.05, h_far:
     wanted = 3 if cell == "quadrilateral" else 2  # gmsh element types: 3 = quad4, 2 = tri3
     if list(model.mesh.getElementTypes(2)) != [wanted]:
         raise RuntimeError(f"mesh is not all {cell}: {model.mesh.getElementTypes(2)}")
+
+
+def cells(*, cell: str = "quadrilateral", h_contact: float = 0.05, h_far: float = 0.1,
+          R: float = 1.0, refine_radius: float = 0.15) -> int:
+    """About the number of cells ``build`` makes (an estimate from the size field: the
+    mesh is unstructured), after its parameter checks (ValueError). The elements must fit
+    the bodies (h_far <= min(R, 1)/4): larger ones make gmsh abort the process."""
+    per_area = 1.15 * _checks.cell(cell)
+    for name, value in (("h_contact", h_contact), ("h_far", h_far), ("R", R),
+                        ("refine_radius", refine_radius)):
+        _checks.number(name, value)
+    _checks.lengths(h_contact=h_contact, h_far=h_far)
+    if not 1e-3 <= R <= 1e3:
+        raise ValueError(f"R must lie in [1e-3, 1e3], got {R!r}")
+    if not h_far >= h_contact:
+        raise ValueError(f"h_far must be >= h_contact, got h_far={h_far!r}, "
+                         f"h_contact={h_contact!r}")
+    if not h_far <= min(R, 1.0) / 4:
+        raise ValueError(f"h_far must be <= min(R, 1)/4 = {min(R, 1.0) / 4:g} (four elements "
+                         f"across the thinner body), got {h_far!r}")
+    if not 0 <= refine_radius <= 1e3:
+        raise ValueError(f"refine_radius must lie in [0, 1e3], got {refine_radius!r}")
+    # cells per area 1.15/h^2 (quadrilaterals; triangles 2.3/h^2): h_contact within
+    # refine_radius of the contact point, growing linearly over 5 (h_far - h_contact) to
+    # h_far (the Threshold field); the integral of 2 pi r / h(r)^2 over that ring is closed
+    area = 2.0 + 0.5 * math.pi * R * R
+    r0, hc, hf = refine_radius, h_contact, h_far
+    fine = min(math.pi * r0 * r0, area) / hc ** 2
+    ring = 10.0 * math.pi * ((r0 - 5.0 * hc) * (1.0 / hc - 1.0 / hf) + 5.0 * math.log(hf / hc))
+    return int(per_area * (fine + ring + area / hf ** 2))
 
 
 def _set_options(cell: str) -> None:
