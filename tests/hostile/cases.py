@@ -22,6 +22,7 @@ import re
 import shutil
 import signal
 import subprocess
+import sys
 import time
 import tomllib
 from dataclasses import dataclass, field
@@ -95,6 +96,7 @@ class Case:
     ranks: int = 1
     sender: Callable | None = None        # process mode: sender(proc, D) while it runs
     fault: bool = False                   # run through tests/hostile/_faults.py (full disk)
+    env: dict = field(default_factory=dict)  # process mode: more environment ({dir} = D)
     timeout: float = 60.0
 
     def write_inputs(self, d: Path, donors) -> None:
@@ -370,7 +372,7 @@ add(
     value("max_cuts_huge", "steps.max_cuts", ("steps.max_cuts", 10 ** 9)),
     value("min_increment_below_roundoff", "steps.min_increment",
           ("steps.min_increment", 1e-300), ("steps.max_cuts", 50)),
-    value("rtol_one", "solver.rtol", ("solver", {"rtol": 1.0})),
+    value("rtol_above_one", "solver.rtol", ("solver", {"rtol": 2.0})),
     value("max_iterations_huge", "solver.max_iterations", ("solver", {"max_iterations": 10 ** 9})),
     value("quadrature_degree_huge", "solver.quadrature_degree",
           ("solver", {"quadrature_degree": 1000})),
@@ -611,9 +613,24 @@ add(
              "-ksp_error_if_not_converged": True}})), stage="run"),
 )
 
+def rerun_succeeds(d: Path, out: str, err: str) -> str:
+    """check: the same scene, run again with the same JIT cache, converges (an interrupted
+    compilation left no half-written entry that would time the next one out)."""
+    env = {**os.environ, "XDG_CACHE_HOME": str(d / "jit-cache")}
+    proc = subprocess.run([sys.executable, "-m", "fenicsx_mortar", "run", str(d / "scene.toml"),
+                           "--out", str(d / "out")], cwd=d / "work", env=env, text=True,
+                          capture_output=True, timeout=300)
+    return "" if proc.returncode == 0 else f"the rerun failed: {proc.stderr[-1000:]}"
+
+
 # -- signals during start-up, a full disk, and MPI ----------------------------------------
 SLOW_MESH = edit(BLOCK, ("mesh.params", {"nx": 700, "ny": 700}))
 add(
+    # a fresh JIT cache: the forms compile for several seconds after the (tiny) meshing
+    Case("sigint_while_compiling", 1, "SIGINT while compiling", edit(BLOCK, (
+        "bodies[0].material.model", "svk")), mode="process", env={
+        "XDG_CACHE_HOME": "{dir}/jit-cache"}, sender=signal_after(signal.SIGINT, 2.0),
+        check=rerun_succeeds, stage="run", timeout=120),
     Case("sigterm_while_meshing", 1, "SIGTERM", SLOW_MESH, mode="process",
          sender=signal_after(signal.SIGTERM, 1.0), stage="run"),
     Case("sigint_while_meshing", 1, "SIGINT", SLOW_MESH, mode="process",
