@@ -14,7 +14,7 @@ def dumps(doc: dict) -> str:
 
 
 def key(k: str) -> str:
-    return k if _BARE.fullmatch(k) else json.dumps(k, ensure_ascii=False)
+    return k if _BARE.fullmatch(k) else value(k)
 
 
 def value(v) -> str:
@@ -29,8 +29,9 @@ def value(v) -> str:
             return "inf" if v > 0 else "-inf"
         return repr(v)
     if isinstance(v, str):
-        # JSON's escapes (\", \\, \n, \u00XX) are TOML basic-string escapes
-        return json.dumps(v, ensure_ascii=False)
+        # JSON's escapes (\", \\, \n, \u00XX) are TOML basic-string escapes; TOML also
+        # wants DEL escaped
+        return json.dumps(v, ensure_ascii=False).replace("\x7f", "\\u007f")
     if isinstance(v, list):
         return "[" + ", ".join(value(x) for x in v) + "]"
     if isinstance(v, dict):

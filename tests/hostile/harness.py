@@ -24,6 +24,8 @@ from ._toml import dumps
 
 MPI_ENV = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
            "OMPI_MCA_rmaps_base_oversubscribe": "1"}
+#: a case's own JIT cache (XDG_CACHE_HOME), not an output
+JIT_CACHE = "jit-cache"
 GOOD = ("refused as expected", "stopped as expected", "ran as expected")
 
 
@@ -66,7 +68,7 @@ def files_under(d: Path) -> set[str]:
 def stray(d: Path, before: set[str]) -> list[str]:
     """Files that appeared in D but not under D/out (the only place a run may write)."""
     return sorted(f for f in files_under(d) - before
-                  if not (f == "out" or f.startswith("out/")))
+                  if not (f in ("out", JIT_CACHE) or f.startswith(("out/", JIT_CACHE + "/"))))
 
 
 def command(case: Case, d: Path) -> list[str]:
@@ -93,7 +95,8 @@ def run_process(case: Case, d: Path, donors: Donors, env: dict | None = None,
     code under test); the time limit kills the whole process group."""
     case.write_inputs(d, donors)
     before = files_under(d)
-    env = {**(env or os.environ), **MPI_ENV, "PYTHONUNBUFFERED": "1"}
+    env = {**(env or os.environ), **MPI_ENV, "PYTHONUNBUFFERED": "1",
+           **{k: v.format(dir=d) for k, v in case.env.items()}}
     t0 = time.time()
     proc = subprocess.Popen(command(case, d), cwd=d / "work", env=env, text=True,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE,
