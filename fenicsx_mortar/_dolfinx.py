@@ -324,3 +324,9 @@ def quadrature_expression(expr, msh: Mesh, degree: int) -> fem.Expression:
 def cell_midpoints(msh: Mesh, cells: np.ndarray) -> np.ndarray:
     """(n, 2) mean of the geometry nodes of the given local cells."""
     return node_coordinates(msh)[cell_nodes(msh)[cells]].mean(axis=1)
+
+
+def jit_cache_dir():
+    """The directory of DOLFINx's JIT cache (FFCx modules)."""
+    from dolfinx import jit
+    return jit.get_parameters()["cache_dir"]

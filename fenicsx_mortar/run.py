@@ -7,8 +7,10 @@ load steps with step cutting (:func:`.solver.run_load_steps`), writing the outpu
 """
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
+import os
 import signal
 import sys
 import threading
@@ -98,7 +100,7 @@ def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM
     with timings("mesh"):
         dom = build_domain(scene, comm)
     _enter("compiling the forms (JIT)")
-    with timings("jit"):
+    with timings("jit"), _jit_cache_kept_whole():
         bulk = build_bulk(scene, dom)
         stress = StressOutput(bulk, scene)
     _enter("setting up the contact pairs and the solver")
@@ -112,13 +114,13 @@ def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM
     else:
         guards.check_tolerance(scene, bulk)
     stop = _StopRequest(comm)
-    with timings("jit"):
+    with timings("jit"), _jit_cache_kept_whole():
         from .problem import ContactProblem
         problem = ContactProblem(bulk.residual, bulk.u, bulk.bcs, pairs, bulk.jacobian,
                                  settings=scene.solver, timings=timings,
                                  should_stop=stop.requested)
-    solver = problem.solver
-    solver.check_solution = guards.StepGuard(scene, bulk, solver)
+        solver = problem.solver
+        solver.check_solution = guards.StepGuard(scene, bulk, solver)
     ndofs = dx.dof_count(bulk.V)
     log(f"  dofs: {ndofs}, ranks: {comm.size}")
 
@@ -201,6 +203,24 @@ def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM
     log(("done: " if completed else "FAILED: ") + message)
     return Result(scene, completed, message, steps, dict(timings), dom, bulk, stress, pairs,
                   summary)
+
+
+@contextlib.contextmanager
+def _jit_cache_kept_whole():
+    """If compiling is interrupted (a signal raises in the middle), leave no C file without
+    its module in the JIT cache: FFCx clears its own on an Exception, except when the
+    signal lands just after it created the file, and a stale one makes every later run
+    wait for it and fail (TimeoutError). Renamed as FFCx itself does (``.c.failed``)."""
+    cache = Path(dx.jit_cache_dir())
+    before = set(cache.glob("*.c")) if cache.is_dir() else set()
+    try:
+        yield
+    except BaseException:
+        for c in set(cache.glob("*.c")) - before:
+            if not c.with_suffix(".c.cached").exists():
+                with contextlib.suppress(OSError):
+                    os.replace(c, c.with_suffix(".c.failed"))
+        raise
 
 
 def _final_outputs(out: Path, scene: Scene, summary: dict, steps: list, pairs: list) -> None:
