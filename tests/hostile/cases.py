@@ -208,9 +208,19 @@ def readonly_dir(d: Path, donors) -> None:
         raise Skip("no read-only directory: not root-free and cannot mount")
 
 
+def small_disk(d: Path, donors) -> None:
+    """prepare: D/out a 64 KiB tmpfs, which the run's writes fill up for real (root only)."""
+    (d / "out").mkdir()
+    proc = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(d / "out")],
+                          capture_output=True) if os.geteuid() == 0 else None
+    if proc is None or proc.returncode != 0:
+        raise Skip("cannot mount a small file system here (needs root)")
+
+
 def unmount(d: Path) -> None:
-    if os.path.ismount(d / "ro"):
-        subprocess.run(["umount", str(d / "ro")], check=False)
+    for place in (d / "ro", d / "out"):
+        if os.path.ismount(place):
+            subprocess.run(["umount", str(place)], check=False)
 
 
 class Skip(Exception):
@@ -251,6 +261,22 @@ def full_disk_kept(d: Path, out: str, err: str) -> str:
         step = int(f["step"])
     if len(s["steps"]) != 1 or step != 1:
         return f"summary.json has {len(s['steps'])} steps, the checkpoint step {step} (want 1, 1)"
+    return ""
+
+
+def full_disk_consistent(d: Path, out: str, err: str) -> str:
+    """check: on a disk that filled up no temporary file is left, and summary.json and the
+    checkpoint are whole and hold the same step, or the checkpoint one more (summary.json
+    is written last in a step)."""
+    o = d / "out"
+    left = [p.name for p in o.rglob(".*")]
+    if left:
+        return f"temporary files left: {left}"
+    steps = len(json.loads((o / "summary.json").read_text())["steps"])
+    with np.load(o / "checkpoint.npz") as f:
+        step = int(f["step"])
+    if steps < 1 or step - steps not in (0, 1):
+        return f"summary.json has {steps} steps, the checkpoint step {step}"
     return ""
 
 
@@ -613,9 +639,26 @@ add(
              "-ksp_error_if_not_converged": True}})), stage="run"),
 )
 
+def signal_when(sig: signal.Signals, pattern: str):
+    """sender: ``sig`` as soon as a file matching ``pattern`` appears under D (e.g. the C
+    file FFCx writes before compiling it)."""
+    def send(proc: subprocess.Popen, d: Path) -> None:
+        deadline = time.time() + 60
+        while not any(d.glob(pattern)) and time.time() < deadline and proc.poll() is None:
+            time.sleep(0.005)
+        if proc.poll() is None:
+            proc.send_signal(sig)
+    return send
+
+
 def rerun_succeeds(d: Path, out: str, err: str) -> str:
-    """check: the same scene, run again with the same JIT cache, converges (an interrupted
+    """check: no C file without its module is left in the JIT cache, and the same scene,
+    run again with the same cache, converges (an interrupted
     compilation left no half-written entry that would time the next one out)."""
+    cache = d / "jit-cache/fenics"
+    stale = [c.name for c in cache.glob("*.c") if not c.with_suffix(".c.cached").exists()]
+    if stale:
+        return f"C files without their module left in the JIT cache: {stale}"
     env = {**os.environ, "XDG_CACHE_HOME": str(d / "jit-cache")}
     proc = subprocess.run([sys.executable, "-m", "fenicsx_mortar", "run", str(d / "scene.toml"),
                            "--out", str(d / "out")], cwd=d / "work", env=env, text=True,
@@ -626,15 +669,19 @@ def rerun_succeeds(d: Path, out: str, err: str) -> str:
 # -- signals during start-up, a full disk, and MPI ----------------------------------------
 SLOW_MESH = edit(BLOCK, ("mesh.params", {"nx": 700, "ny": 700}))
 add(
-    # a fresh JIT cache: the forms compile for several seconds after the (tiny) meshing
+    # a fresh JIT cache: SIGINT as soon as FFCx writes the first form's C file
     Case("sigint_while_compiling", 1, "SIGINT while compiling", edit(BLOCK, (
         "bodies[0].material.model", "svk")), mode="process", env={
-        "XDG_CACHE_HOME": "{dir}/jit-cache"}, sender=signal_after(signal.SIGINT, 2.0),
+        "XDG_CACHE_HOME": "{dir}/jit-cache"},
+        sender=signal_when(signal.SIGINT, "jit-cache/fenics/libffcx_forms_*.c"),
         check=rerun_succeeds, stage="run", timeout=120),
     Case("sigterm_while_meshing", 1, "SIGTERM", SLOW_MESH, mode="process",
          sender=signal_after(signal.SIGTERM, 1.0), stage="run"),
     Case("sigint_while_meshing", 1, "SIGINT", SLOW_MESH, mode="process",
          sender=signal_after(signal.SIGINT, 1.0), stage="run"),
+    Case("disk_really_full", 1, "No space left", base(
+        ("steps.count", 60), ("output", {"xdmf": False, "plots": False})), mode="process",
+        prepare=small_disk, check=full_disk_consistent, stage="run"),
     Case("disk_full", 1, "No space left", base(("steps.count", 3),
                                                ("output", {"xdmf": False, "plots": False})),
          mode="process", fault=True, check=full_disk_kept, stage="run"),

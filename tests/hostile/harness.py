@@ -37,6 +37,7 @@ class Outcome:
     seconds: float
     stray: list[str]
     dir: Path
+    problem: str = ""         # what the case's check found wrong
 
 
 class Donors:
@@ -112,9 +113,22 @@ def run_process(case: Case, d: Path, donors: Donors, env: dict | None = None,
         os.killpg(proc.pid, 9)
         out, err = proc.communicate()
         code = None
+    try:
+        o = Outcome(code, seen + out, err, time.time() - t0, stray(d, before), d)
+        o.problem = problem(case, o)
     finally:
         unmount(d)
-    return Outcome(code, seen + out, err, time.time() - t0, stray(d, before), d)
+    return o
+
+
+def problem(case: Case, o: Outcome) -> str:
+    """What the case's extra check finds wrong ("" if nothing, or no check to make)."""
+    if case.check is None or o.code != case.expect:
+        return ""
+    try:
+        return case.check(o.dir, o.out, ours(o.err))
+    except Exception as e:  # the outputs the check reads are missing or broken
+        return f"{type(e).__name__}: {e}"
 
 
 def ours(err: str) -> str:
@@ -136,12 +150,7 @@ def kind(case: Case, o: Outcome) -> str:
         return "wrote outside --out"
     if "Traceback" in o.err or "Traceback" in o.out or o.code not in (0, 1, 2):
         return "crashed"
-    problem = ""
-    if case.check is not None and o.code == case.expect:
-        try:
-            problem = case.check(o.dir, o.out, o.err)
-        except Exception as e:  # the outputs the check reads are missing or broken
-            problem = f"{type(e).__name__}: {e}"
+    problem = o.problem
     if o.code == 0:
         if case.expect == 0:
             return "ran as expected" if not problem else ("wrong exit 0" if case.hazard == "wrong"
