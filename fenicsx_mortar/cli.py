@@ -45,11 +45,16 @@ def _command(args) -> int:
     (MPI_Abort) instead of leaving them waiting for the one that failed."""
     from mpi4py import MPI
 
-    from .parallel import RunError
+    from .parallel import Interrupted, RunError
     from .scene import SceneError
     comm = MPI.COMM_WORLD
     try:
         return _dispatch(args, comm)
+    except Interrupted as e:   # each rank where the signal found it: end them all
+        if comm.size > 1:
+            _abort_interrupted(comm, e)
+        _error(comm, e)
+        return 1
     except SceneError as e:
         _error(comm, e)
         return 2
@@ -108,6 +113,16 @@ def _dispatch(args, comm) -> int:
     return 0 if result.converged else 1
 
 
+def _abort_interrupted(comm, e: Exception) -> None:
+    """One line, then MPI_Abort: rank 0 says it; another rank gives rank 0 two seconds to
+    (rank 0 may be deep in gmsh, where no signal handler runs) and then says it itself."""
+    if comm.rank != 0:
+        import time
+        time.sleep(2.0)
+    print(f"fenicsx-mortar: error: {e}", file=sys.stderr, flush=True)
+    comm.Abort(1)
+
+
 def _error(comm, e: Exception) -> None:
     if comm.rank == 0:
         text = " ".join(str(e).split("\n"))
@@ -142,10 +157,10 @@ class _Interrupt:
 
     @staticmethod
     def _raise(signum, frame):
-        from .parallel import RunError
+        from .parallel import Interrupted
         run = sys.modules.get("fenicsx_mortar.run")   # not imported yet: still reading
         doing = run.phase() if run else "reading the scene"
-        raise RunError(f"interrupted by {signal.Signals(signum).name} while {doing}; "
+        raise Interrupted(f"interrupted by {signal.Signals(signum).name} while {doing}; "
                        "what converged is kept")
 
 

@@ -36,6 +36,11 @@ class RankOSError(RunError):
         return RankOSError, (self.errno, self.strerror, self.filename)
 
 
+class Interrupted(RunError):
+    """SIGINT or SIGTERM outside the load steps: raised wherever each rank happens to be,
+    so the ranks do not agree on it (cli.py ends them all)."""
+
+
 def _portable(e: BaseException) -> Exception:
     """The error as every rank re-raises it (picklable, same message)."""
     if isinstance(e, (SceneError, RunError)):

@@ -697,6 +697,9 @@ add(
          mode="mpi", ranks=2, fault=True, check=full_disk_kept, stage="run"),
     Case("mpi_long_pair_name", 2, f"{CONTACT}.name", base((f"{CONTACT}.name", "p" * 300)),
          mode="mpi", ranks=2),
+    # mpirun forwards SIGTERM to the ranks, each raises where it is: MPI_Abort ends them all
+    Case("mpi_sigterm_while_meshing", 1, "SIGTERM", SLOW_MESH, mode="mpi", ranks=2,
+         sender=signal_after(signal.SIGTERM, 1.0), stage="run"),
 )
 
 #: donor runs the restart cases copy: name -> scene

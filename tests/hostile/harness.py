@@ -11,6 +11,7 @@ as expected``, ``stopped as expected``, ``ran as expected``; ``other`` for anyth
 from __future__ import annotations
 
 import os
+import re
 import resource
 import shutil
 import subprocess
@@ -132,12 +133,13 @@ def problem(case: Case, o: Outcome) -> str:
 
 
 def ours(err: str) -> str:
-    """stderr without mpirun's own report of a non-zero exit (blocks between dashed lines)."""
+    """stderr without Open MPI's own reports (of a non-zero exit, of MPI_Abort): its blocks
+    between dashed lines and its "[host:pid] ..." help-aggregation lines."""
     kept, inside = [], False
     for line in err.splitlines(keepends=True):
         if line.startswith("-----"):
             inside = not inside
-        elif not inside:
+        elif not inside and not re.match(r"\[[^\]\s]+:\d+\] ", line):
             kept.append(line)
     return "".join(kept)
 
