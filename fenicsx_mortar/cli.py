@@ -114,11 +114,12 @@ def _dispatch(args, comm) -> int:
 
 
 def _abort_interrupted(comm, e: Exception) -> None:
-    """One line, then MPI_Abort: rank 0 says it; another rank gives rank 0 two seconds to
-    (rank 0 may be deep in gmsh, where no signal handler runs) and then says it itself."""
+    """One line, then MPI_Abort: rank 0 says it; another rank gives rank 0 half a second
+    to (rank 0 may be deep in gmsh, where no signal handler runs) and then says it itself
+    — within the second mpirun leaves the ranks after forwarding SIGTERM."""
     if comm.rank != 0:
         import time
-        time.sleep(2.0)
+        time.sleep(0.5)
     print(f"fenicsx-mortar: error: {e}", file=sys.stderr, flush=True)
     comm.Abort(1)
 

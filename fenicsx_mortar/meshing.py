@@ -9,6 +9,7 @@ import numpy as np
 from mpi4py import MPI
 
 from . import _dolfinx as dx
+from .parallel import wait_for_all
 from .scene import LIMITS, Scene, SceneError
 
 
@@ -139,6 +140,7 @@ def build_domain(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD) -> Domain:
             error = str(e)
         except Exception as e:  # whatever gmsh raises: every rank must hear of it
             error = f"mesh: gmsh failed: {e}"
+    wait_for_all(comm)   # the other ranks wait for gmsh here, still answering signals
     error = comm.bcast(error, root=0)
     if error is not None:
         if comm.rank == 0:

@@ -10,6 +10,7 @@ the same point. For an exception nobody foresaw the command line ends all ranks 
 """
 from __future__ import annotations
 
+import time
 from typing import Callable, TypeVar
 
 from mpi4py import MPI
@@ -48,6 +49,18 @@ def _portable(e: BaseException) -> Exception:
     if isinstance(e, OSError):
         return RankOSError(e.errno, e.strerror or str(e), e.filename)
     return RunError(f"{type(e).__name__}: {e}")
+
+
+def wait_for_all(comm: MPI.Comm) -> None:
+    """A barrier that keeps Python running while it waits (a non-blocking barrier polled),
+    so a rank waiting for rank 0 (meshing in gmsh, say) still answers a signal: in a
+    blocking MPI call no Python signal handler runs, and mpirun kills the ranks one second
+    after forwarding SIGTERM."""
+    if comm.size == 1:
+        return
+    request = comm.Ibarrier()
+    while not request.Test():
+        time.sleep(0.005)
 
 
 def on_rank0(comm: MPI.Comm, fn: Callable[[], T], share: bool = False) -> T | None:

@@ -22,7 +22,7 @@ from typing import Literal, Union
 #: Gauss points per mortar segment, bulk quadrature degree, Newton iterations per solve,
 #: ALM updates per step, and the size of a scene file
 LIMITS = {"cells": 1_000_000, "steps": 100_000, "max_cuts": 50, "n_gauss": 16,
-          "quadrature_degree": 12, "max_iterations": 1000, "max_augmentations": 1000,
+          "quadrature_degree": 16, "max_iterations": 1000, "max_augmentations": 1000,
           "scene_bytes": 8 << 20}
 #: names that become file names or labels (contact pairs, supports)
 NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.+-]{0,63}")

@@ -91,7 +91,9 @@ class Case:
     prepare: Callable | None = None       # prepare(D, donors) lays out more inputs
     check: Callable | None = None         # check(D, stdout, stderr) -> what is wrong, or ""
     stage: str = "scene"                  # "scene": refused before meshing; "mesh"; "run"
-    hazard: str = "wrong"                 # what an exit 0 would be: "wrong" answer or "ignored"
+    hazard: str = "wrong"                 # an exit 0 would be: a "wrong" answer, the value
+    #                                       "ignored", or a value "unchecked" (unbounded in
+    #                                       memory or time, an unsafe name, an unverified file)
     mode: str = "inproc"                  # "inproc" (main(argv)), "process", "mpi"
     ranks: int = 1
     sender: Callable | None = None        # process mode: sender(proc, D) while it runs
@@ -348,7 +350,7 @@ add(
     value("curve_value_inf", "curves.c.value[1]", CURVE, ("curves.c.value", [0.0, INF, 1.0]),
           ("pressures[0].curve", "c")),
     value("curve_value_nan_unused", "curves.c.value[2]", CURVE,
-          ("curves.c.value", [0.0, 1.0, NAN])),
+          ("curves.c.value", [0.0, 1.0, NAN]), hazard="ignored"),
     value("epsilon_inf", f"{CONTACT}.enforcement.epsilon",
           (f"{CONTACT}.enforcement", {"type": "penalty", "epsilon": INF})),
     value("epsilon_nan", f"{CONTACT}.enforcement.epsilon",
@@ -360,16 +362,18 @@ add(
     value("mu_inf", f"{CONTACT}.friction.mu", (f"{CONTACT}.friction.mu", INF), COULOMB_LAW),
     value("mu_nan", f"{CONTACT}.friction.mu", (f"{CONTACT}.friction.mu", NAN), COULOMB_LAW),
     value("search_radius_nan", f"{CONTACT}.search_radius", (f"{CONTACT}.search_radius", NAN)),
-    value("search_radius_inf", f"{CONTACT}.search_radius", (f"{CONTACT}.search_radius", INF)),
+    value("search_radius_inf", f"{CONTACT}.search_radius", (f"{CONTACT}.search_radius", INF),
+          hazard="unchecked"),
     value("steps_end_nan", "steps.end", ("steps.end", NAN)),
     value("steps_end_inf", "steps.end", ("steps.end", INF)),
     value("steps_times_nan", "steps.times[0]", ("steps", {"times": [NAN]})),
     value("steps_times_inf", "steps.times[1]", ("steps", {"times": [0.5, INF]})),
     value("min_increment_nan", "steps.min_increment", ("steps.min_increment", NAN)),
-    value("min_increment_inf", "steps.min_increment", ("steps.min_increment", INF)),
+    value("min_increment_inf", "steps.min_increment", ("steps.min_increment", INF),
+          hazard="ignored"),
     value("atol_inf", "solver.atol", ("solver", {"atol": INF})),
     value("atol_nan", "solver.atol", ("solver", {"atol": NAN})),
-    value("rtol_inf", "solver.rtol", ("solver", {"rtol": INF})),
+    value("rtol_inf", "solver.rtol", ("solver", {"rtol": INF}), hazard="ignored"),
     value("rtol_nan", "solver.rtol", ("solver", {"rtol": NAN})),
     value("petsc_value_nan", "-snes_linesearch_damping",
           ("solver", {"petsc": {"-snes_linesearch_damping": NAN}})),
@@ -381,29 +385,33 @@ add(
     value("tolerance_one", f"{CONTACT}.enforcement.tolerance",
           (f"{CONTACT}.enforcement", {"tolerance": 1.0})),
     value("tolerance_below_roundoff", f"{CONTACT}.enforcement.tolerance",
-          (f"{CONTACT}.enforcement", {"tolerance": 1e-300})),
-    value("search_radius_zero", f"{CONTACT}.search_radius", (f"{CONTACT}.search_radius", 0.0)),
+          (f"{CONTACT}.enforcement", {"tolerance": 1e-300}), hazard="unchecked"),
+    value("search_radius_zero", f"{CONTACT}.search_radius", (f"{CONTACT}.search_radius", 0.0),
+          hazard="ignored"),
     value("search_radius_negative", f"{CONTACT}.search_radius",
           (f"{CONTACT}.search_radius", -1.0)),
-    value("n_gauss_huge", f"{CONTACT}.n_gauss", (f"{CONTACT}.n_gauss", 10 ** 9)),
-    value("n_gauss_max_int", f"{CONTACT}.n_gauss", (f"{CONTACT}.n_gauss", 2 ** 63 - 1)),
+    value("n_gauss_huge", f"{CONTACT}.n_gauss", (f"{CONTACT}.n_gauss", 10 ** 9),
+          hazard="unchecked"),
+    value("n_gauss_max_int", f"{CONTACT}.n_gauss", (f"{CONTACT}.n_gauss", 2 ** 63 - 1),
+          hazard="unchecked"),
     value("max_augmentations_negative", f"{CONTACT}.enforcement.max_augmentations",
           (f"{CONTACT}.enforcement", {"max_augmentations": -1})),
     value("max_augmentations_huge", f"{CONTACT}.enforcement.max_augmentations",
-          (f"{CONTACT}.enforcement", {"max_augmentations": 10 ** 9})),
-    value("steps_count_huge", "steps.count", ("steps.count", 10 ** 12)),
-    value("steps_count_max_int", "steps.count", ("steps.count", 2 ** 63 - 1)),
+          (f"{CONTACT}.enforcement", {"max_augmentations": 10 ** 9}), hazard="unchecked"),
+    value("steps_count_huge", "steps.count", ("steps.count", 10 ** 12), hazard="unchecked"),
+    value("steps_count_max_int", "steps.count", ("steps.count", 2 ** 63 - 1), hazard="unchecked"),
     value("steps_times_too_many", "steps.times",
-          ("steps", {"times": [(k + 1) / 100001 for k in range(100001)]})),
-    value("max_cuts_huge", "steps.max_cuts", ("steps.max_cuts", 10 ** 9)),
+          ("steps", {"times": [(k + 1) / 100001 for k in range(100001)]}), hazard="unchecked"),
+    value("max_cuts_huge", "steps.max_cuts", ("steps.max_cuts", 10 ** 9), hazard="unchecked"),
     value("min_increment_below_roundoff", "steps.min_increment",
-          ("steps.min_increment", 1e-300), ("steps.max_cuts", 50)),
-    value("rtol_above_one", "solver.rtol", ("solver", {"rtol": 2.0})),
-    value("max_iterations_huge", "solver.max_iterations", ("solver", {"max_iterations": 10 ** 9})),
+          ("steps.min_increment", 1e-300), ("steps.max_cuts", 50), hazard="unchecked"),
+    value("rtol_above_one", "solver.rtol", ("solver", {"rtol": 2.0}), hazard="ignored"),
+    value("max_iterations_huge", "solver.max_iterations", ("solver", {"max_iterations": 10 ** 9}),
+          hazard="unchecked"),
     value("quadrature_degree_huge", "solver.quadrature_degree",
-          ("solver", {"quadrature_degree": 1000})),
+          ("solver", {"quadrature_degree": 1000}), hazard="unchecked"),
     value("quadrature_degree_40", "solver.quadrature_degree",
-          ("solver", {"quadrature_degree": 40})),
+          ("solver", {"quadrature_degree": 40}), hazard="unchecked"),
     value("atol_huge", "solver.atol", ("solver", {"atol": 1e30}), stage="run"),
     value("atol_below_roundoff", "solver.atol", ("solver", {"atol": 1e-300}), stage="run"),
 )
@@ -441,7 +449,8 @@ PETSC = [
     ("view_never_read", "-snes_view", {"-snes_view": True}, "ignored"),
     ("viewer_file_outside", "-snes_monitor", {"-snes_monitor": "ascii:../outside.txt"}, "wrong"),
     ("viewer_binary_file", "-ksp_view_mat", {"-ksp_view_mat": "binary:mat.bin"}, "wrong"),
-    ("x_window", "-snes_monitor_lg_residualnorm", {"-snes_monitor_lg_residualnorm": True}, "wrong"),
+    ("x_window", "-snes_monitor_lg_residualnorm", {"-snes_monitor_lg_residualnorm": True},
+     "ignored"),
     ("skip_convergence_test", "-snes_convergence_test", {"-snes_convergence_test": "skip"},
      "wrong"),
     ("ksponly", "-snes_type", {"-snes_type": "ksponly"}, "wrong"),
@@ -461,15 +470,15 @@ add(
     value("pressure_boundary_repeated", "pressures[0].boundary",
           ("pressures[0].boundary", ["block_top", "block_top"])),
     value("slave_repeated", f"{CONTACT}.slave",
-          (f"{CONTACT}.slave", ["block_bottom", "block_bottom"])),
+          (f"{CONTACT}.slave", ["block_bottom", "block_bottom"]), hazard="ignored"),
     value("dirichlet_boundary_repeated", "dirichlet[0].boundary",
-          ("dirichlet[0].boundary", ["slab_bottom", "slab_bottom"])),
+          ("dirichlet[0].boundary", ["slab_bottom", "slab_bottom"]), hazard="ignored"),
     value("two_bodies_one_region", "bodies[1].region", ("bodies[1].region", "block")),
     value("third_body_on_a_region", "bodies[2].region",
           ("bodies[+]", {"name": "again", "region": "slab",
                          "material": {"model": "svk", "E": 10.0, "nu": 0.2}})),
     value("dirichlet_conflict", "dirichlet[2].y",
-          ("dirichlet[+]", {"boundary": "slab_bottom", "y": 0.1})),
+          ("dirichlet[+]", {"boundary": "slab_bottom", "y": 0.1}), hazard="ignored"),
     value("no_support_in_y", "no entry prescribes y", ("dirichlet[0].y", DELETE)),
     value("no_supports", "no entry prescribes x or y", ("dirichlet", [])),
     value("region_without_body", "'slab'", ("bodies", BASE["bodies"][:1]),
@@ -482,11 +491,13 @@ add(
 NAMES = [("traversal", "../../x"), ("slash", "sub/x"), ("dot_dot", ".."), ("empty", ""),
          ("too_long", "a" * 300), ("nul", "a\u0000b"), ("newline", "a\nb"),
          ("leading_dash", "-rf")]
-add(*(value(f"pair_name_{id}", f"{CONTACT}.name", (f"{CONTACT}.name", name))
-      for id, name in NAMES))
+add(*(value(f"pair_name_{id}", f"{CONTACT}.name", (f"{CONTACT}.name", name),
+            hazard="wrong" if id == "traversal" else "unchecked") for id, name in NAMES))
 add(
-    value("support_name_traversal", "dirichlet[0].name", ("dirichlet[0].name", "../x")),
-    value("support_name_too_long", "dirichlet[0].name", ("dirichlet[0].name", "s" * 300)),
+    value("support_name_traversal", "dirichlet[0].name", ("dirichlet[0].name", "../x"),
+          hazard="unchecked"),
+    value("support_name_too_long", "dirichlet[0].name", ("dirichlet[0].name", "s" * 300),
+          hazard="unchecked"),
 )
 
 # -- values that would be ignored ---------------------------------------------------------
@@ -513,7 +524,8 @@ add(
          .encode("latin-1")),
     Case("scene_utf16", 2, "scene.toml", BASE_TEXT.encode("utf-16")),
     Case("scene_binary", 2, "scene.toml", bytes(range(256)) * 4),
-    Case("scene_too_large", 2, "scene.toml", BASE_TEXT + "#" + "x" * (20 << 20) + "\n"),
+    Case("scene_too_large", 2, "scene.toml", BASE_TEXT + "#" + "x" * (20 << 20) + "\n",
+         hazard="unchecked"),
     Case("scene_missing", 2, "nowhere.toml", None,
          argv=("run", "{dir}/nowhere.toml", "--out", "{out}")),
 )
@@ -589,7 +601,8 @@ add(
                     rewrite_checkpoint(lambda a: {**a, "u": a["u"][:-1]})),
     checkpoint_case("checkpoint_steps_not_json",
                     rewrite_checkpoint(lambda a: {**a, "steps": np.array("[{")})),
-    checkpoint_case("checkpoint_without_fingerprint", rewrite_checkpoint(_no_fingerprint)),
+    checkpoint_case("checkpoint_without_fingerprint", rewrite_checkpoint(_no_fingerprint),
+                    hazard="unchecked"),
     checkpoint_case("checkpoint_of_another_run", _other_run, donor="base_p05"),
     square_case("checkpoint_of_another_mesh", 2, "mesh", argv=("run", "--restart", "{out}"),
                 prepare=_run_then_move_a_node, check=summary_unchanged, stage="mesh"),
@@ -697,9 +710,6 @@ add(
          mode="mpi", ranks=2, fault=True, check=full_disk_kept, stage="run"),
     Case("mpi_long_pair_name", 2, f"{CONTACT}.name", base((f"{CONTACT}.name", "p" * 300)),
          mode="mpi", ranks=2),
-    # mpirun forwards SIGTERM to the ranks, each raises where it is: MPI_Abort ends them all
-    Case("mpi_sigterm_while_meshing", 1, "SIGTERM", SLOW_MESH, mode="mpi", ranks=2,
-         sender=signal_after(signal.SIGTERM, 1.0), stage="run"),
 )
 
 #: donor runs the restart cases copy: name -> scene

@@ -2,11 +2,13 @@
 
 The kinds of outcome, in the order they are decided: ``hung`` (killed at the time limit),
 ``wrote outside --out``, ``crashed`` (a traceback, or killed by a signal: segfault, abort,
-a bare SIGTERM), ``wrong exit 0`` / ``ignored silently`` (exit 0 where the case must fail:
-its ``hazard`` says which), ``refused, key not named`` / ``stopped, key not named`` (exit
-2 or 1 without the key or file at fault in the message, e.g. a Newton failure), ``refused
-as expected``, ``stopped as expected``, ``ran as expected``; ``other`` for anything else
-(e.g. the right exit code but a failed extra check).
+a bare SIGTERM), ``wrong exit 0`` / ``ignored silently`` / ``accepted unchecked`` (exit 0
+where the case must fail, its ``hazard`` says which: a wrong answer; the value had no
+effect; a value unbounded in memory or time, an unsafe name or an unverifiable file taken
+as it came, with a right answer this time), ``refused, key not named`` / ``stopped, key
+not named`` (exit 2 or 1 without the key or file at fault in the message, e.g. a Newton
+failure), ``refused as expected``, ``stopped as expected``, ``ran as expected``;
+``other`` for anything else (e.g. the right exit code but a failed extra check).
 """
 from __future__ import annotations
 
@@ -25,6 +27,9 @@ from ._toml import dumps
 
 MPI_ENV = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
            "OMPI_MCA_rmaps_base_oversubscribe": "1"}
+#: the kind of an exit 0 where the case must fail, by its hazard
+EXIT_0 = {"wrong": "wrong exit 0", "ignored": "ignored silently",
+          "unchecked": "accepted unchecked"}
 #: a case's own JIT cache (XDG_CACHE_HOME), not an output
 JIT_CACHE = "jit-cache"
 GOOD = ("refused as expected", "stopped as expected", "ran as expected")
@@ -154,10 +159,9 @@ def kind(case: Case, o: Outcome) -> str:
         return "crashed"
     problem = o.problem
     if o.code == 0:
-        if case.expect == 0:
-            return "ran as expected" if not problem else ("wrong exit 0" if case.hazard == "wrong"
-                                                          else "ignored silently")
-        return "wrong exit 0" if case.hazard == "wrong" else "ignored silently"
+        if case.expect == 0 and not problem:
+            return "ran as expected"
+        return EXIT_0[case.hazard]
     err = ours(o.err)
     message = err if o.code == 2 else err + o.out
     named = case.key in message
