@@ -1,6 +1,6 @@
 """Writes the hostile mesh files of tests/hostile/meshes/ (committed; run again only to change
-them): ``python tests/hostile/make_meshes.py``. Every file but ``square.msh`` and
-``square_fine.msh`` is one that fenicsx_mortar must refuse by name."""
+them): ``python tests/hostile/make_meshes.py``. Every file but ``square.msh`` is one that
+fenicsx_mortar must refuse by name."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -93,7 +93,6 @@ def lines_only():
 def main() -> None:
     HERE.mkdir(exist_ok=True)
     _write("square.msh", unit_square())
-    _write("square_fine.msh", unit_square(3))
     _write("mixed.msh", mixed)
     _write("tri6.msh", unit_square(recombine=False), order=2)
     _write("quad9.msh", unit_square(), order=2)
