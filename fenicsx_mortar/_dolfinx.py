@@ -310,3 +310,23 @@ def matrix_with_couplings(a_form, V, blocks: list[np.ndarray]) -> PETSc.Mat:
     A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
     del im
     return A
+
+
+def quadrature_expression(expr, msh: Mesh, degree: int) -> fem.Expression:
+    """Compile a scalar UFL expression for evaluation at the Gauss points of ``degree`` on
+    the mesh's cell type (``.eval(cells)`` → (n_cells, n_points))."""
+    import basix
+    cell = basix.cell.string_to_type(msh.topology.cell_type.name)
+    points, _ = basix.make_quadrature(cell, degree)
+    return fem.Expression(expr, points)
+
+
+def cell_midpoints(msh: Mesh, cells: np.ndarray) -> np.ndarray:
+    """(n, 2) mean of the geometry nodes of the given local cells."""
+    return node_coordinates(msh)[cell_nodes(msh)[cells]].mean(axis=1)
+
+
+def jit_cache_dir():
+    """The directory of DOLFINx's JIT cache (FFCx modules)."""
+    from dolfinx import jit
+    return jit.get_parameters()["cache_dir"]

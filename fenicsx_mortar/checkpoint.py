@@ -3,22 +3,57 @@
 The displacement is stored per ORIGINAL mesh node (gmsh input numbering), so a restart may
 use another number of MPI ranks; each contact pair adds its history (ALM multipliers, NTS
 segment choices, friction reference points) through ``state_dict``/``load_state_dict``.
-Written atomically.
+Written atomically (a failed write leaves the previous checkpoint and no temporary file).
+
+A checkpoint carries the fingerprints of the scene it was written for (SHA-256 of the
+scene as saved in scene.json) and of the mesh (SHA-256 of every node's number and
+coordinates and every cell's nodes): a restart refuses, before anything is written, a
+checkpoint that is corrupt or comes from another scene or mesh.
 """
 from __future__ import annotations
 
+import hashlib
 import io
 import json
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 from mpi4py import MPI
 
 from . import _dolfinx as dx
+from .output import write_atomic
+from .parallel import agree, on_rank0
+from .scene import SceneError
 
 FILE = "checkpoint.npz"
+#: the arrays every checkpoint has (the pairs add "pair<i>_<key>")
+ARRAYS = ("node", "u", "time", "step", "steps", "fingerprint_scene", "fingerprint_mesh")
+
+
+def scene_fingerprint(scene_json: str) -> str:
+    """Of the scene as scene.json holds it (run.scene_to_json, a canonical text)."""
+    return hashlib.sha256(scene_json.encode()).hexdigest()
+
+
+def mesh_fingerprint(msh, comm: MPI.Comm) -> str:
+    """Of the mesh whatever its distribution: nodes (input number, x, y) and cells (their
+    nodes' input numbers, sorted), gathered and sorted on rank 0 (collective)."""
+    idx = dx.input_node_numbers(msh).astype(np.int64)
+    x = np.ascontiguousarray(dx.node_coordinates(msh), dtype=np.float64)
+    cells = np.sort(idx[dx.cell_nodes(msh)[: dx.num_owned_cells(msh)]], axis=1)
+    parts = comm.gather((idx, x, cells), root=0)
+    digest = None
+    if comm.rank == 0:
+        idx = np.concatenate([p[0] for p in parts])
+        x = np.concatenate([p[1] for p in parts])
+        idx, first = np.unique(idx, return_index=True)
+        cells = np.concatenate([p[2] for p in parts])
+        cells = cells[np.lexsort(cells.T[::-1])]
+        h = hashlib.sha256()
+        for a in (idx, x[first], cells):
+            h.update(np.ascontiguousarray(a).tobytes())
+        digest = h.hexdigest()
+    return comm.bcast(digest, root=0)
 
 
 def _owned_nodes(V):
@@ -29,46 +64,97 @@ def _owned_nodes(V):
     return dx.input_node_numbers(msh)[geom], dx.vertex_dofs_all(V, verts)
 
 
-def save(out: Path, comm: MPI.Comm, u, pairs, t: float, k: int, steps: list[dict]) -> None:
+def save(out: Path, comm: MPI.Comm, u, pairs, t: float, k: int, steps: list[dict],
+         fingerprints: tuple[str, str]) -> None:
+    """Collective; rank 0 writes. A failed write raises OSError on every rank."""
     idx, dofs = _owned_nodes(u.function_space)
     parts = comm.gather((idx, u.x.array[dofs]), root=0)
     # state_dict is collective (it gathers per-node history from the owning ranks)
     states = [p.state_dict() for p in pairs]
-    if comm.rank != 0:
-        return
-    idx = np.concatenate([p[0] for p in parts])
-    vals = np.concatenate([p[1] for p in parts])
-    order = np.argsort(idx)
-    arrays = {"node": idx[order], "u": vals[order], "time": np.array(t), "step": np.array(k),
-              "steps": np.array(json.dumps(steps, default=float))}
-    for i, state in enumerate(states):
-        for key, value in state.items():
-            arrays[f"pair{i}_{key}"] = value
-    buf = io.BytesIO()
-    np.savez(buf, **arrays)
-    fd, tmp = tempfile.mkstemp(dir=out, prefix=f".{FILE}.")
-    with os.fdopen(fd, "wb") as f:
-        f.write(buf.getvalue())
-    os.replace(tmp, out / FILE)
+
+    def write() -> None:
+        idx = np.concatenate([p[0] for p in parts])
+        vals = np.concatenate([p[1] for p in parts])
+        order = np.argsort(idx)
+        arrays = {"node": idx[order], "u": vals[order], "time": np.array(t),
+                  "step": np.array(k), "steps": np.array(json.dumps(steps, default=float)),
+                  "fingerprint_scene": np.array(fingerprints[0]),
+                  "fingerprint_mesh": np.array(fingerprints[1])}
+        for i, state in enumerate(states):
+            for key, value in state.items():
+                arrays[f"pair{i}_{key}"] = value
+        buf = io.BytesIO()
+        np.savez(buf, **arrays)
+        write_atomic(out / FILE, buf.getvalue())
+    on_rank0(comm, write)
 
 
-def load(out: Path, comm: MPI.Comm, u, pairs) -> tuple[float, int, list[dict]]:
-    """Set ``u`` and the pairs' history from the checkpoint; return (time, step, records)."""
-    data = None
-    if comm.rank == 0:
-        with np.load(out / FILE) as f:
+def read(out: Path, comm: MPI.Comm, scene_json: str) -> dict:
+    """The checkpoint's arrays (on every rank), checked: a readable file with every array,
+    finite values of consistent shapes, written for this scene. Raises SceneError naming
+    the file (exit 2) before anything is written."""
+    return on_rank0(comm, lambda: _read(out / FILE, scene_json), share=True)
+
+
+def _read(path: Path, scene_json: str) -> dict:
+    try:
+        with np.load(path, allow_pickle=False) as f:
             data = {key: f[key] for key in f.files}
-    data = comm.bcast(data, root=0)
-    V = u.function_space
-    msh = V.mesh
-    verts = np.arange(dx.num_vertices(msh), dtype=np.int32)
-    idx = dx.input_node_numbers(msh)[dx.vertex_to_geometry_node(msh)[verts]]
-    node = data["node"]
-    pos = np.searchsorted(node, idx)
-    if np.any(pos >= len(node)) or np.any(node[np.minimum(pos, len(node) - 1)] != idx):
-        raise ValueError(f"{out / FILE} does not match this mesh")
-    u.x.array[dx.vertex_dofs_all(V, verts)] = data["u"][pos]
-    for i, pair in enumerate(pairs):
-        prefix = f"pair{i}_"
-        pair.load_state_dict({k[len(prefix):]: v for k, v in data.items() if k.startswith(prefix)})
-    return float(data["time"]), int(data["step"]), json.loads(str(data["steps"]))
+    except Exception as e:  # BadZipFile, EOFError, ValueError, IsADirectoryError, ...
+        raise SceneError(f"{path}: not a readable checkpoint ({type(e).__name__}: {e})") \
+            from None
+    missing = [a for a in ARRAYS if a not in data]
+    if missing:
+        old = " (written before checkpoints had fingerprints)" if "fingerprint_scene" in \
+            missing and "u" in data else ""
+        raise SceneError(f"{path}: not a checkpoint of this version: no {', '.join(missing)}"
+                         f"{old}")
+    if str(data["fingerprint_scene"]) != scene_fingerprint(scene_json):
+        raise SceneError(f"{path}: written for another scene than {path.parent / 'scene.json'}"
+                         " (its scene fingerprint differs); refusing to continue it")
+    node, u = data["node"], data["u"]
+    if (node.ndim != 1 or u.shape != (len(node), 2) or not np.issubdtype(node.dtype, np.integer)
+            or not np.issubdtype(u.dtype, np.floating)):
+        raise SceneError(f"{path}: arrays 'node' {node.shape} and 'u' {u.shape} do not fit "
+                         "(one displacement [ux, uy] per node)")
+    if not (np.isfinite(u).all() and np.isfinite(data["time"]).all()):
+        raise SceneError(f"{path}: holds values that are not finite")
+    try:
+        steps = json.loads(str(data["steps"]))
+    except ValueError:
+        steps = None
+    if not isinstance(steps, list) or not all(isinstance(s, dict) for s in steps):
+        raise SceneError(f"{path}: its step records are not a JSON list of records")
+    data["steps"] = steps
+    return data
+
+
+def load(out: Path, comm: MPI.Comm, u, pairs, data: dict, mesh_fp: str
+         ) -> tuple[float, int, list[dict]]:
+    """Set ``u`` and the pairs' history from the checked ``data`` (:func:`read`) after
+    checking it belongs to this mesh; return (time, step, records)."""
+    path = out / FILE
+    if str(data["fingerprint_mesh"]) != mesh_fp:
+        raise SceneError(f"{path}: written for another mesh (its mesh fingerprint differs: "
+                         "the mesh file changed?); refusing to continue it")
+
+    def apply() -> None:
+        V = u.function_space
+        msh = V.mesh
+        verts = np.arange(dx.num_vertices(msh), dtype=np.int32)
+        idx = dx.input_node_numbers(msh)[dx.vertex_to_geometry_node(msh)[verts]]
+        node = data["node"]
+        pos = np.searchsorted(node, idx)
+        if np.any(pos >= len(node)) or np.any(node[np.minimum(pos, len(node) - 1)] != idx):
+            raise SceneError(f"{path} does not match this mesh")
+        u.x.array[dx.vertex_dofs_all(V, verts)] = data["u"][pos]
+        for i, pair in enumerate(pairs):
+            prefix = f"pair{i}_"
+            try:
+                pair.load_state_dict({k[len(prefix):]: v for k, v in data.items()
+                                      if k.startswith(prefix)})
+            except (KeyError, ValueError, IndexError) as e:
+                raise SceneError(f"{path}: the history of contact {pair.name} does not fit "
+                                 f"({type(e).__name__}: {e})") from None
+    agree(comm, apply)
+    return float(data["time"]), int(data["step"]), data["steps"]

@@ -8,7 +8,9 @@ kept), 2 bad input (one message naming the problem, no traceback).
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
+import threading
 from pathlib import Path
 
 
@@ -32,33 +34,71 @@ def main(argv: list[str] | None = None) -> int:
                    "smoothing x enforcement x mesh size on B1-B3 (source checkout only; "
                    "docs/accuracy-vs-time.md)")
     args = parser.parse_args(argv)
+    with _Interrupt():
+        return _command(args)
 
+
+def _command(args) -> int:
+    """Run the command; every anticipated failure is one line on stderr (rank 0) and the
+    same exit code on every rank: 2 bad input, 1 the run stopped (RunError: a write
+    failed, a signal outside the load steps). Anything else under MPI ends all ranks
+    (MPI_Abort) instead of leaving them waiting for the one that failed."""
     from mpi4py import MPI
 
-    from .scene import SceneError, load_scene
+    from .parallel import Interrupted, RunError
+    from .scene import SceneError
     comm = MPI.COMM_WORLD
     try:
-        if args.command == "run" and args.restart is not None:
-            from .scene import load_scene_json
-            scene = load_scene_json(args.restart / "scene.json")
-            args.scene, args.out = args.restart / "scene.json", args.restart
-        elif args.scene is None:
-            parser.error("give a scene file (or --restart DIR)")
-        else:
-            scene = load_scene(args.scene)
-        if args.command == "check":
-            from .meshing import build_domain
-            build_domain(scene, comm)
-            if comm.rank == 0:
-                print(f"{args.scene}: OK")
-            return 0
-        from .run import solve
-        out = args.out or Path("results") / args.scene.stem
-        result = solve(scene, out, comm, restart=args.restart is not None)
+        return _dispatch(args, comm)
+    except Interrupted as e:   # each rank where the signal found it: end them all
+        if comm.size > 1:
+            _abort_interrupted(comm, e)
+        _error(comm, e)
+        return 1
     except SceneError as e:
-        if comm.rank == 0:
-            print(f"fenicsx-mortar: error: {e}", file=sys.stderr)
+        _error(comm, e)
         return 2
+    except (RunError, TimeoutError) as e:   # TimeoutError: FFCx's JIT cache lock
+        _error(comm, e)
+        return 1
+    except Exception:
+        if comm.size > 1:
+            import traceback
+            traceback.print_exc()
+            sys.stderr.flush()
+            comm.Abort(1)
+        raise
+
+
+def _dispatch(args, comm) -> int:
+    from .guards import check_petsc_options
+    from .scene import SceneError, load_scene, load_scene_json
+    if args.command == "run" and args.restart is not None:
+        if args.scene is not None:
+            raise SceneError(f"--restart {args.restart}: continues with "
+                             f"{args.restart / 'scene.json'}; give no scene file "
+                             f"(got {args.scene})")
+        if args.out is not None and args.out.resolve() != args.restart.resolve():
+            raise SceneError(f"--out {args.out}: a restart writes to its own directory "
+                             f"{args.restart}; give no --out")
+        if not args.restart.is_dir():
+            raise SceneError(f"--restart {args.restart}: not a directory of a run")
+        scene = load_scene_json(args.restart / "scene.json")
+        args.scene, args.out = args.restart / "scene.json", args.restart
+    elif args.scene is None:
+        raise SceneError("run: give a scene file (or --restart DIR)")
+    else:
+        scene = load_scene(args.scene)
+    if args.command == "check":
+        from .meshing import build_domain
+        check_petsc_options(scene.solver)
+        build_domain(scene, comm)
+        if comm.rank == 0:
+            print(f"{args.scene}: OK")
+        return 0
+    from .run import solve
+    out = args.out or Path("results") / args.scene.stem
+    result = solve(scene, out, comm, restart=args.restart is not None)
     if comm.rank == 0:
         t = result.timings
         print(f"summary: {'converged' if result.converged else 'NOT converged'}, "
@@ -71,6 +111,58 @@ def main(argv: list[str] | None = None) -> int:
                       f"{c['max_pressure']:.6g}, {c['active_nodes']} active nodes, "
                       f"KKT residual {c['kkt_residual']:.1e}")
     return 0 if result.converged else 1
+
+
+def _abort_interrupted(comm, e: Exception) -> None:
+    """One line, then MPI_Abort: rank 0 says it; another rank gives rank 0 half a second
+    to (rank 0 may be deep in gmsh, where no signal handler runs) and then says it itself
+    — within the second mpirun leaves the ranks after forwarding SIGTERM."""
+    if comm.rank != 0:
+        import time
+        time.sleep(0.5)
+    print(f"fenicsx-mortar: error: {e}", file=sys.stderr, flush=True)
+    comm.Abort(1)
+
+
+def _error(comm, e: Exception) -> None:
+    if comm.rank == 0:
+        text = " ".join(str(e).split("\n"))
+        print(f"fenicsx-mortar: error: {text}", file=sys.stderr, flush=True)
+
+
+class _Interrupt:
+    """SIGINT and SIGTERM outside the load steps (start-up: reading, meshing, compiling;
+    or the final writes) end the run with one line and exit 1 instead of a traceback or a
+    bare kill. The exception is an ``Exception``, not a ``KeyboardInterrupt``, so FFCx
+    clears its half-compiled module from the JIT cache on the way out. During the load
+    steps run.py's own handler stops at the next Newton iteration."""
+
+    def __enter__(self):
+        self._old = {}
+        if threading.current_thread() is threading.main_thread():
+            # gmsh 4.8 sets SIGINT to the default action when imported and gmsh.finalize()
+            # puts back the handler it found then: import it first, and make that ours
+            import gmsh
+            self._gmsh = getattr(gmsh, "oldsig", None)
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                self._old[sig] = signal.signal(sig, self._raise)
+            gmsh.oldsig = self._raise
+        return self
+
+    def __exit__(self, *exc):
+        if self._old:
+            import gmsh
+            gmsh.oldsig = self._gmsh
+        for sig, old in self._old.items():
+            signal.signal(sig, old)
+
+    @staticmethod
+    def _raise(signum, frame):
+        from .parallel import Interrupted
+        run = sys.modules.get("fenicsx_mortar.run")   # not imported yet: still reading
+        doing = run.phase() if run else "reading the scene"
+        raise Interrupted(f"interrupted by {signal.Signals(signum).name} while {doing}; "
+                       "what converged is kept")
 
 
 def _study(argv: list[str]) -> int:

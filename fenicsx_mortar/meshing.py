@@ -9,7 +9,8 @@ import numpy as np
 from mpi4py import MPI
 
 from . import _dolfinx as dx
-from .scene import Scene, SceneError
+from .parallel import wait_for_all
+from .scene import LIMITS, Scene, SceneError
 
 
 @dataclass
@@ -43,9 +44,13 @@ def _build_model(scene: Scene):
     if ms.generator is not None:
         gmsh.model.add(ms.generator)
         try:
-            load_generator(ms.generator).build(gmsh.model, cell=ms.cell, **ms.params)
+            load_generator(ms.generator).build(gmsh.model, cell=ms.cell or "quadrilateral",
+                                               **ms.params)
         except (TypeError, ValueError) as e:
             raise SceneError(f"mesh.params for generator {ms.generator!r}: {e}") from None
+        except Exception as e:  # gmsh raises bare Exception ("Could not create line")
+            raise SceneError(f"mesh.params for generator {ms.generator!r}: gmsh failed: "
+                             f"{e}") from None
     else:
         path = scene.mesh_file()
         if not path.is_file():
@@ -54,12 +59,13 @@ def _build_model(scene: Scene):
             gmsh.open(str(path))
         except Exception as e:  # gmsh raises bare Exception on unreadable files
             raise SceneError(f"mesh.file: {path} is not a readable gmsh mesh ({e})") from None
-        if gmsh.model.getDimension() != 2:
+        if gmsh.model.getDimension() == 3:
             raise SceneError(f"mesh.file: {path} is a {gmsh.model.getDimension()}D mesh; "
                              "fenicsx_mortar is 2D (plane strain)")
         _, xyz, _ = gmsh.model.mesh.getNodes()
         if xyz.size and np.abs(xyz.reshape(-1, 3)[:, 2]).max() > 0:
             raise SceneError(f"mesh.file: {path} has nodes off the plane z = 0")
+        _check_cells(gmsh.model, f"mesh.file: {path}")
     groups: dict[int, dict[str, int]] = {1: {}, 2: {}}
     for dim, tag in gmsh.model.getPhysicalGroups():
         if dim in groups:
@@ -67,6 +73,58 @@ def _build_model(scene: Scene):
     if not groups[2]:
         raise SceneError("mesh: no physical surface groups (bodies need named 2D groups)")
     return groups
+
+
+#: gmsh element types of the linear cells DOLFINx 0.5 reads here: triangle 3, quadrangle 4
+_LINEAR = {2: "triangle", 3: "quadrilateral"}
+
+
+def _check_cells(model, where: str) -> None:
+    """What ``model_to_mesh`` cannot take, found in the gmsh model first (DOLFINx would
+    segfault on mixed cell types, read higher-order cells as another element, or count a
+    cell twice if it is in two physical groups): one linear cell type, some 2D cells and
+    at most LIMITS["cells"] of them, every surface in at most one physical group, no cell
+    of zero area."""
+    types = [int(t) for t in model.mesh.getElementTypes(2)]
+    if not types:
+        raise SceneError(f"{where} has no 2D cells")
+    names = [model.mesh.getElementProperties(t)[0] for t in types]
+    if len(types) > 1:
+        raise SceneError(f"{where} mixes cell types ({', '.join(names)}); one type only, "
+                         "linear triangles or quadrilaterals")
+    if types[0] not in _LINEAR:
+        raise SceneError(f"{where} has {names[0]} cells; fenicsx_mortar takes linear "
+                         "triangles or quadrilaterals (3 or 4 nodes)")
+    _, cells = model.mesh.getElementsByType(types[0])
+    n_nodes = 3 if types[0] == 2 else 4
+    if len(cells) // n_nodes > LIMITS["cells"]:
+        raise SceneError(f"{where} has {len(cells) // n_nodes:,} cells, more than the limit "
+                         f"of {LIMITS['cells']:,}")
+    owner: dict[int, str] = {}
+    for dim, tag in model.getPhysicalGroups(2):
+        name = model.getPhysicalName(dim, tag) or str(tag)
+        for entity in model.getEntitiesForPhysicalGroup(dim, tag):
+            if entity in owner:
+                raise SceneError(f"{where}: surface {entity} is in two physical surface groups "
+                                 f"({owner[entity]!r} and {name!r}): its cells would count "
+                                 "twice")
+            owner[entity] = name
+    _check_areas(model, cells.reshape(-1, n_nodes), where)
+
+
+def _check_areas(model, cells: np.ndarray, where: str) -> None:
+    tags, xyz, _ = model.mesh.getNodes()
+    x = np.zeros((int(tags.max()) + 1, 2))
+    x[tags.astype(np.int64)] = xyz.reshape(-1, 3)[:, :2]
+    p = x[cells.astype(np.int64)]                        # (n, k, 2) corners in order
+    q = np.roll(p, -1, axis=1)
+    area = 0.5 * np.abs(np.sum(p[..., 0] * q[..., 1] - q[..., 0] * p[..., 1], axis=1))
+    scale = float(np.ptp(p.reshape(-1, 2), axis=0).max()) ** 2
+    bad = np.flatnonzero(area <= 1e-14 * scale)
+    if bad.size:
+        c = p[bad[0]].mean(axis=0)
+        raise SceneError(f"{where}: {bad.size} cell(s) of zero area (the first at "
+                         f"({c[0]:.6g}, {c[1]:.6g}))")
 
 
 def build_domain(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD) -> Domain:
@@ -80,6 +138,9 @@ def build_domain(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD) -> Domain:
             groups = _build_model(scene)
         except SceneError as e:
             error = str(e)
+        except Exception as e:  # whatever gmsh raises: every rank must hear of it
+            error = f"mesh: gmsh failed: {e}"
+    wait_for_all(comm)   # the other ranks wait for gmsh here, still answering signals
     error = comm.bcast(error, root=0)
     if error is not None:
         if comm.rank == 0:
@@ -108,3 +169,7 @@ def _check_groups(scene: Scene, dom: Domain, comm: MPI.Comm) -> None:
                              f"(it has: {', '.join(sorted(dom.facet_groups)) or 'none'})")
         if comm.allreduce(len(dom.facets(name)), op=MPI.SUM) == 0:
             raise SceneError(f"physical curve group {name!r} has no facets in the mesh")
+    for name in sorted(set(dom.cell_groups) - cells):
+        raise SceneError(f"mesh: physical surface group {name!r} is no body's region (its "
+                         "cells would have no material: a singular stiffness); add a body "
+                         "on it or remove it from the mesh")

@@ -1,6 +1,14 @@
-"""Run outputs: summary.json (atomic), solution.xdmf, PNG plots. Rank 0 writes files."""
+"""Run outputs: summary.json (atomic), solution.xdmf, PNG plots. Rank 0 writes files.
+
+Every file goes under the output directory (``--out``): names that become file names are
+checked by the scene (contact pairs), and the directory is checked before meshing
+(:func:`prepare_out`). A failed write raises OSError naming the file; the run stops
+with a message naming the disk (:func:`write_failure`), and what converged before is kept
+(atomic writes leave the last good file and no temporary one).
+"""
 from __future__ import annotations
 
+import errno
 import json
 import os
 import tempfile
@@ -8,18 +16,70 @@ from pathlib import Path
 
 import numpy as np
 
+from .scene import SceneError
 
-def write_atomic(path: Path, text: str) -> None:
-    """Write via a temporary file and rename, so a reader never sees half a file."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
+
+def prepare_out(out: Path) -> None:
+    """Create ``out`` if needed and prove a file can be written there (rank 0): a file, a
+    path under a file, a read-only or unwritable place is refused before any meshing."""
+    key = f"--out {out}"
+    if out.exists() and not out.is_dir():
+        raise SceneError(f"{key}: exists and is not a directory")
     try:
-        with os.fdopen(fd, "w") as f:
-            f.write(text)
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise SceneError(f"{key}: cannot create the directory ({e.strerror})") from None
+    try:
+        fd, probe = tempfile.mkstemp(dir=out, prefix=".write-test.")
+        try:
+            os.write(fd, b"x")
+        finally:
+            os.close(fd)
+            os.unlink(probe)
+    except OSError as e:
+        raise SceneError(f"{key}: cannot write there ({e.strerror})") from None
+
+
+def write_atomic(path: Path, data: str | bytes) -> None:
+    """Write via a temporary file and rename, so a reader never sees half a file and a
+    failed write (a full disk) leaves the previous file and no temporary one. Raises
+    OSError with ``filename`` = path."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
+    except OSError as e:
+        raise OSError(e.errno, e.strerror, str(path)) from None
+    try:
+        with os.fdopen(fd, "wb" if isinstance(data, bytes) else "w") as f:
+            f.write(data)
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as e:
         os.unlink(tmp)
+        if isinstance(e, OSError):
+            raise OSError(e.errno, e.strerror, str(path)) from None
         raise
+
+
+def write_failure(out: Path, e: OSError, kept: str) -> str:
+    """The one-line message of a failed write: which file, why, and for a full disk, which
+    disk (its mount point and free bytes); ``kept`` says what is still there."""
+    name = Path(e.filename).name if e.filename else "an output file"
+    text = f"{out}: cannot write {name}: {e.strerror or e}"
+    if e.errno in (errno.ENOSPC, errno.EDQUOT):
+        mount = _mount_point(out)
+        try:
+            free = os.statvfs(out).f_bavail * os.statvfs(out).f_frsize
+            text += f" (the disk mounted at {mount} is full: {free:,} bytes free)"
+        except OSError:
+            text += f" (the disk mounted at {mount} is full)"
+    return f"{text}; {kept}"
+
+
+def _mount_point(path: Path) -> Path:
+    p = Path(os.path.abspath(path))
+    while not os.path.ismount(p) and p != p.parent:
+        p = p.parent
+    return p
 
 
 def write_summary(out: Path, summary: dict) -> None:

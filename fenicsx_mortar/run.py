@@ -7,8 +7,10 @@ load steps with step cutting (:func:`.solver.run_load_steps`), writing the outpu
 """
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
+import os
 import signal
 import sys
 import threading
@@ -20,10 +22,11 @@ from typing import Callable
 from mpi4py import MPI
 
 from . import _dolfinx as dx
-from . import checkpoint, output
+from . import checkpoint, guards, output
 from .contact import output as interface_output
 from .bulk import Bulk, StressOutput, build_bulk
 from .meshing import Domain, build_domain
+from .parallel import RankOSError, RunError, agree, on_rank0
 from .scene import Scene, SceneError
 from .solver import StepResult, Timings, run_load_steps
 
@@ -47,6 +50,18 @@ class Result:
         return self.bulk.u
 
 
+_PHASE = ["reading the scene"]
+
+
+def phase() -> str:
+    """What solve() is doing (for the message of a signal outside the load steps)."""
+    return _PHASE[0]
+
+
+def _enter(what: str) -> None:
+    _PHASE[0] = what
+
+
 def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM_WORLD,
           log: Callable[[str], None] | None = None, restart: bool = False,
           on_step: Callable[[dict, "Result"], None] | None = None) -> Result:
@@ -54,51 +69,71 @@ def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM
     there after every converged step, so a run that fails or is interrupted (SIGINT,
     SIGTERM) keeps what converged; ``restart=True`` continues from ``out``'s checkpoint.
     ``on_step(record, state)`` is called after every converged step with the step's record
-    and a Result holding the current state (for pictures or custom output of each step)."""
+    and a Result holding the current state (for pictures or custom output of each step).
+
+    Bad input raises SceneError on every rank, before meshing where it can be told without
+    the mesh (the scene, the PETSc options, the output directory, the checkpoint) and
+    before anything is written otherwise; a write that fails (a full disk) stops the run
+    with RunError naming the disk, keeping the last good summary.json and checkpoint."""
+    _enter("checking the inputs")
     scene.validate()
-    if restart and (out is None or not (Path(out) / checkpoint.FILE).is_file()):
-        raise SceneError(f"restart: {out}/{checkpoint.FILE} does not exist (no converged step "
-                         "to continue from)")
+    guards.check_petsc_options(scene.solver)
+    out = Path(out) if out is not None else None
+    saved = None
+    if restart:
+        if out is None or not (out / checkpoint.FILE).is_file():
+            raise SceneError(f"restart: {out}/{checkpoint.FILE} does not exist (no converged "
+                             "step to continue from)")
+        saved = checkpoint.read(out, comm, scene_to_json(scene))
+    elif out is not None:
+        on_rank0(comm, lambda: output.prepare_out(out))
     rank0 = comm.rank == 0
     log = log or (_log_line if rank0 else (lambda s: None))
     timings = Timings()
     t_start = time.perf_counter()
-    out = Path(out) if out is not None else None
 
     log(f"fenicsx_mortar: {scene.title or 'scene'}")
     for e in scene.effects():
         log(f"  effect: {e}")
 
+    _enter("meshing")
     with timings("mesh"):
         dom = build_domain(scene, comm)
-    with timings("jit"):
+    _enter("compiling the forms (JIT)")
+    with timings("jit"), _jit_cache_kept_whole():
         bulk = build_bulk(scene, dom)
         stress = StressOutput(bulk, scene)
+    _enter("setting up the contact pairs and the solver")
     pairs = scene_pairs(scene, dom, bulk.V) if scene.contacts else []
+    fingerprints = (checkpoint.scene_fingerprint(scene_to_json(scene)),
+                    checkpoint.mesh_fingerprint(dom.mesh, comm))
     t0, k0, steps = 0.0, 0, []
     if restart:
-        t0, k0, steps = checkpoint.load(Path(out), comm, bulk.u, pairs)
+        t0, k0, steps = checkpoint.load(out, comm, bulk.u, pairs, saved, fingerprints[1])
         log(f"  restart from step {k0} at pseudo-time {t0:.6g}")
+    else:
+        guards.check_tolerance(scene, bulk)
     stop = _StopRequest(comm)
-    with timings("jit"):
+    with timings("jit"), _jit_cache_kept_whole():
         from .problem import ContactProblem
         problem = ContactProblem(bulk.residual, bulk.u, bulk.bcs, pairs, bulk.jacobian,
                                  settings=scene.solver, timings=timings,
                                  should_stop=stop.requested)
-    solver = problem.solver
+        solver = problem.solver
+        solver.check_solution = guards.StepGuard(scene, bulk, solver)
     ndofs = dx.dof_count(bulk.V)
     log(f"  dofs: {ndofs}, ranks: {comm.size}")
 
     summary = {"title": scene.title, "converged": False, "message": "running",
                "effects": scene.effects(), "dofs": ndofs, "ranks": comm.size,
-               "steps": steps, "timings": timings}
+               "steps": steps, "timings": timings, "warnings": []}
     writer = None
+    kept = {"checkpoint.npz": k0, "summary.json": k0}
     if out is not None:
-        if rank0:
-            out.mkdir(parents=True, exist_ok=True)
-            if not restart:
-                output.write_atomic(out / "scene.json", scene_to_json(scene))
-        comm.barrier()
+        if not restart:
+            _write(out, comm, kept, lambda: output.write_atomic(out / "scene.json",
+                                                                scene_to_json(scene)),
+                   rank0_only=True)
         with timings("output"):
             if scene.output.xdmf:
                 # a restart continues in its own file: XDMF cannot be reopened for appending
@@ -106,6 +141,7 @@ def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM
                 writer = dx.XDMFWriter(comm, str(out / name), dom.mesh)
                 stress.update()
                 writer.write([bulk.u, stress.sigma], t0)
+    warned: set[str] = set()
 
     def record_step(k: int, t: float, res: StepResult, cuts: int) -> None:
         b = solver.unconstrained_residual()
@@ -115,43 +151,103 @@ def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM
         for p in pairs:
             record.setdefault("contact", {}).update(p.record())
         steps.append(record)
+        for p, c in zip(pairs, scene.contacts):
+            warning = guards.penetration_warning(p, k) if c.enforcement.type == "penalty" \
+                else None
+            if warning and p.name not in warned:
+                warned.add(p.name)
+                summary["warnings"].append(warning)
+                log(f"  warning: {warning}")
         with timings("output"):
             stress.update()
             if writer is not None:
                 writer.write([bulk.u, stress.sigma], t)
             if out is not None:
-                checkpoint.save(out, comm, bulk.u, pairs, t, k, steps)
-                if rank0:
-                    output.write_summary(out, summary)
-                    for p in pairs:
-                        interface_output.write_interface(p, out, k)
+                _write(out, comm, kept, lambda: checkpoint.save(
+                    out, comm, bulk.u, pairs, t, k, steps, fingerprints), "checkpoint.npz", k)
+                _write(out, comm, kept, lambda: [interface_output.write_interface(p, out, k)
+                                                 for p in pairs], rank0_only=True)
+                # last: a summary.json that lists step k means all of step k's files exist
+                _write(out, comm, kept, lambda: output.write_summary(out, summary),
+                       "summary.json", k, rank0_only=True)
         log(_step_line(k, t, res, cuts))
         if on_step is not None:
             on_step(record, Result(scene, False, "running", steps, dict(timings), dom, bulk,
                                    stress, pairs, summary))
 
     progress = _progress_printer() if rank0 else (lambda s: None)
-    with stop:
-        completed, message = run_load_steps(
-            solver, scene.steps, bulk.set_time, record_step, progress,
-            max(c.enforcement.max_augmentations for c in scene.contacts) if scene.contacts else 0,
-            t_start=t0, k_start=k0, should_stop=stop.requested)
+    _enter("in the load steps")
+    try:
+        with stop:
+            completed, message = run_load_steps(
+                solver, scene.steps, bulk.set_time, record_step, progress,
+                max(c.enforcement.max_augmentations for c in scene.contacts)
+                if scene.contacts else 0,
+                t_start=t0, k_start=k0, should_stop=stop.requested)
+    except RunError as e:
+        log(f"FAILED: {e}")
+        if writer is not None:
+            writer.close()
+        raise
     timings["total"] = time.perf_counter() - t_start
+    _enter("writing the final outputs")
     with timings("output"):
         if writer is not None:
             writer.close()
         summary.update(converged=completed, message=message, steps=steps, timings=dict(timings))
-        if out is not None and rank0:
-            output.write_summary(out, summary)
-            if scene.output.plots:
-                output.plot_reactions(out, steps)
-                output.plot_convergence(out, steps)
-                for p in pairs:
-                    interface_output.plot_pressure(p, out)
+        if out is not None:
+            _write(out, comm, kept, lambda: _final_outputs(out, scene, summary, steps, pairs),
+                   rank0_only=True)
     summary["timings"] = dict(timings)
+    _enter("reading the scene")
     log(("done: " if completed else "FAILED: ") + message)
     return Result(scene, completed, message, steps, dict(timings), dom, bulk, stress, pairs,
                   summary)
+
+
+@contextlib.contextmanager
+def _jit_cache_kept_whole():
+    """If compiling is interrupted (a signal raises in the middle), leave no C file without
+    its module in the JIT cache: FFCx clears its own on an Exception, except when the
+    signal lands just after it created the file, and a stale one makes every later run
+    wait for it and fail (TimeoutError). Renamed as FFCx itself does (``.c.failed``)."""
+    cache = Path(dx.jit_cache_dir())
+    before = set(cache.glob("*.c")) if cache.is_dir() else set()
+    try:
+        yield
+    except BaseException:
+        for c in set(cache.glob("*.c")) - before:
+            if not c.with_suffix(".c.cached").exists():
+                with contextlib.suppress(OSError):
+                    os.replace(c, c.with_suffix(".c.failed"))
+        raise
+
+
+def _final_outputs(out: Path, scene: Scene, summary: dict, steps: list, pairs: list) -> None:
+    output.write_summary(out, summary)
+    if scene.output.plots:
+        output.plot_reactions(out, steps)
+        output.plot_convergence(out, steps)
+        for p in pairs:
+            interface_output.plot_pressure(p, out)
+
+
+def _write(out: Path, comm: MPI.Comm, kept: dict, write: Callable[[], object],
+           name: str | None = None, step: int = 0, rank0_only: bool = False) -> None:
+    """Run an output write (``rank0_only``: on rank 0, the others hear how it went); a
+    failure stops the run on every rank with RunError naming the file and the disk and
+    what is kept. ``kept[name] = step`` once ``name`` holds ``step``."""
+    try:
+        on_rank0(comm, write) if rank0_only else agree(comm, write)
+    except (OSError, RankOSError) as e:
+        raise RunError(output.write_failure(out, e, _kept(kept))) from None
+    if name is not None:
+        kept[name] = step
+
+
+def _kept(kept: dict) -> str:
+    return "kept " + ", ".join(f"{n} of step {k}" for n, k in kept.items() if k) \
+        if any(kept.values()) else "no step was saved"
 
 
 def scene_pairs(scene: Scene, dom: Domain, V) -> list:

@@ -6,7 +6,10 @@ run builds only those. Field-by-field documentation: ``docs/scenes.md``.
 from __future__ import annotations
 
 import dataclasses
+import importlib
 import math
+import re
+import stat
 import tomllib
 import types
 import typing
@@ -14,6 +17,15 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal, Union
 
+#: upper bounds of the numbers that drive memory or time (docs/scenes.md): cells of a
+#: generated mesh (estimated before meshing) or of a mesh file, load steps, cuts in a row,
+#: Gauss points per mortar segment, bulk quadrature degree, Newton iterations per solve,
+#: ALM updates per step, and the size of a scene file
+LIMITS = {"cells": 1_000_000, "steps": 100_000, "max_cuts": 50, "n_gauss": 16,
+          "quadrature_degree": 16, "max_iterations": 1000, "max_augmentations": 1000,
+          "scene_bytes": 8 << 20}
+#: names that become file names or labels (contact pairs, supports)
+NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.+-]{0,63}")
 
 
 def generators() -> list[str]:
@@ -37,7 +49,7 @@ class MeshSource:
     source tree's ``meshes/<generator>.py``) or a gmsh ``file``."""
     generator: str | None = None
     file: str | None = None
-    cell: Literal["quadrilateral", "triangle"] = "quadrilateral"
+    cell: Literal["quadrilateral", "triangle"] | None = None  # generators: quadrilateral
     params: dict[str, bool | int | float | str] = field(default_factory=dict)
 
 
@@ -263,26 +275,57 @@ class Scene:
 
     # ------------------------------------------------------------------ validation
     def validate(self) -> "Scene":
-        """Semantic checks that do not need the mesh; raise SceneError naming the key."""
+        """Semantic checks that do not need the mesh; raise SceneError naming the key.
+        Every float must be finite (TOML has nan and inf), every number lie in its range
+        (docs/scenes.md), and the numbers that drive memory or time have upper bounds
+        (LIMITS; the cell count of a generator's mesh is estimated before meshing)."""
+        _check_finite(self, "")
+        self._check_mesh()
+        self._check_bodies()
+        self._check_curves()
+        self._check_loads()
+        self._check_dirichlet()
+        self._check_contacts()
+        self._check_steps()
+        self._check_solver()
+        return self
+
+    def _check_mesh(self) -> None:
         ms = self.mesh
         if (ms.generator is None) == (ms.file is None):
             raise SceneError("mesh: give exactly one of 'generator' or 'file'")
-        if ms.generator is not None and ms.generator not in generators():
-            known = generators()
+        if ms.file is not None:
+            _check_mesh_file(self.mesh_file())
+            if ms.params:
+                raise SceneError("mesh.params: generator parameters, but the mesh is a file")
+            if ms.cell is not None:
+                raise SceneError(f"mesh.cell = {ms.cell!r}: for generators only (a mesh file's "
+                                 "cells are its own)")
+            return
+        if ms.generator not in generators():
             raise SceneError(f"mesh.generator = {ms.generator!r}: no such generator "
-                             f"(known: {', '.join(known)})")
-        if ms.file is not None and not self.mesh_file().is_file():
-            raise SceneError(f"mesh.file: {self.mesh_file()} does not exist")
+                             f"(known: {', '.join(generators())})")
+        _check_generator(ms)
+
+    def _check_bodies(self) -> None:
         if not self.bodies:
             raise SceneError("bodies: a scene needs at least one body")
-        names = [b.name for b in self.bodies]
-        _unique(names, "bodies[].name")
+        _unique([b.name for b in self.bodies], "bodies[].name")
+        regions: dict[str, int] = {}
         for i, b in enumerate(self.bodies):
             m, key = b.material, f"bodies[{i}].material"
             if not (m.E > 0 and math.isfinite(m.E)):
                 raise SceneError(f"{key}.E = {m.E}: Young's modulus must be positive")
             if not (-1.0 < m.nu < 0.5):
                 raise SceneError(f"{key}.nu = {m.nu}: Poisson's ratio must lie in (-1, 0.5)")
+            _check_group(b.group, f"bodies[{i}].region")
+            if b.group in regions:
+                raise SceneError(f"bodies[{i}].region = {b.group!r}: also the region of "
+                                 f"bodies[{regions[b.group]}] (one body per region: two would "
+                                 "add their stiffness)")
+            regions[b.group] = i
+
+    def _check_curves(self) -> None:
         for name, c in self.curves.items():
             key = f"curves.{name}"
             if len(c.t) != len(c.value) or len(c.t) < 2:
@@ -295,16 +338,37 @@ class Scene:
                 if item.curve != "ramp" and item.curve not in self.curves:
                     raise SceneError(f"{kind}[{i}].curve = {item.curve!r}: no such curve "
                                      f"(define [curves.{item.curve}])")
+
+    def _check_loads(self) -> None:
+        for kind, items in (("pressures", self.pressures), ("tractions", self.tractions)):
+            for i, item in enumerate(items):
+                _check_groups(item.boundary, f"{kind}[{i}].boundary")
+        for i, t in enumerate(self.tractions):
+            if len(t.value) != 2:
+                raise SceneError(f"tractions[{i}].value must be [tx, ty]")
+
+    def _check_dirichlet(self) -> None:
+        names = [b.name for b in self.bodies]
+        held: dict[tuple, str] = {}   # (where, component) -> the entry prescribing it
         for i, d in enumerate(self.dirichlet):
             key = f"dirichlet[{i}]"
             if (d.boundary is None) == (d.point is None):
                 raise SceneError(f"{key}: give exactly one of 'boundary' or 'point'")
+            if d.name is not None:
+                _check_name(d.name, f"{key}.name")
             if d.point is not None:
                 if len(d.point) != 2:
                     raise SceneError(f"{key}.point must be [x, y]")
                 if d.body not in names:
                     raise SceneError(f"{key}.body = {d.body!r}: a point condition names one "
                                      f"of the bodies ({', '.join(names)})")
+                places = [(d.body, *d.point)]
+            else:
+                _check_groups(d.boundary, f"{key}.boundary")
+                if d.body is not None:
+                    raise SceneError(f"{key}.body = {d.body!r}: for a 'point' condition only "
+                                     "(a boundary names its own nodes)")
+                places = _as_list(d.boundary)
             if d.motion is not None:
                 if d.boundary is None or d.x is not None or d.y is not None:
                     raise SceneError(f"{key}.motion: a rigid motion moves a whole 'boundary' "
@@ -315,15 +379,29 @@ class Scene:
                 for c in (m.translation_curve, m.rotation_curve):
                     if c != "ramp" and c not in self.curves:
                         raise SceneError(f"{key}.motion: no such curve {c!r}")
+                comps = ("x", "y")
             elif d.x is None and d.y is None:
                 raise SceneError(f"{key}: prescribe at least one component ('x' or 'y')")
-        for i, t in enumerate(self.tractions):
-            if len(t.value) != 2:
-                raise SceneError(f"tractions[{i}].value must be [tx, ty]")
+            else:
+                comps = tuple(c for c in ("x", "y") if getattr(d, c) is not None)
+            for place in places:
+                for c in comps:
+                    if (place, c) in held:
+                        raise SceneError(f"{key}.{c}: {_place(place)} has its {c} prescribed "
+                                         f"by {held[place, c]} already (one value per node)")
+                    held[place, c] = key
+        free = [c for c in ("x", "y") if not any(k[1] == c for k in held)]
+        if free:
+            raise SceneError(f"dirichlet: no entry prescribes {' or '.join(free)}: the bodies "
+                             f"could move rigidly along {' and '.join(free)} (a singular "
+                             "stiffness; contact between the bodies does not hold them)")
+
+    def _check_contacts(self) -> None:
         _unique([c.name for c in self.contacts], "contacts[].name")
         from .contact.registry import ENFORCEMENTS, FRICTION_LAWS, METHODS, SMOOTHINGS
         for i, c in enumerate(self.contacts):
             key = f"contacts[{i}]"
+            _check_name(c.name, f"{key}.name")
             for name, value, registry in (("method", c.method, METHODS),
                                           ("smoothing", c.smoothing, SMOOTHINGS),
                                           ("enforcement.type", c.enforcement.type, ENFORCEMENTS),
@@ -339,51 +417,80 @@ class Scene:
             if c.basis is not None and c.basis not in METHODS[c.method].bases:
                 raise SceneError(f"{key}.basis = {c.basis!r}: method {c.method!r} offers "
                                  f"{', '.join(map(repr, METHODS[c.method].bases))}")
-            if set(_as_list(c.slave)) & set(_as_list(c.master)):
+            _check_groups(c.slave, f"{key}.slave")
+            _check_groups(c.master, f"{key}.master")
+            both = sorted(set(_as_list(c.slave)) & set(_as_list(c.master)))
+            if both:
                 raise SceneError(f"{key}: slave and master surfaces must differ "
-                                 f"(both name "
-                                 f"{sorted(set(_as_list(c.slave)) & set(_as_list(c.master)))})")
+                                 f"(both name {both})")
             e = c.enforcement
             if e.epsilon is not None and not e.epsilon > 0:
                 raise SceneError(f"{key}.enforcement.epsilon = {e.epsilon}: must be positive")
             if not e.tolerance > 0:
                 raise SceneError(f"{key}.enforcement.tolerance must be positive")
+            _check_range(e.tolerance, f"{key}.enforcement.tolerance", 1e-14, 1e-2,
+                         "a KKT residual relative to the pressure scale: below 1e-14 it is "
+                         "round-off, above 1e-2 the pressures are not converged")
+            _check_range(e.max_augmentations, f"{key}.enforcement.max_augmentations", 0,
+                         LIMITS["max_augmentations"])
             if c.friction.mu < 0:
                 raise SceneError(f"{key}.friction.mu = {c.friction.mu}: must be >= 0")
             if c.friction.law == "none" and c.friction.mu != 0:
                 raise SceneError(f"{key}.friction: mu given but law = 'none' "
                                  "(use law = 'coulomb')")
+            if c.search_radius is not None and not c.search_radius > 0:
+                raise SceneError(f"{key}.search_radius = {c.search_radius}: must be positive")
             if c.n_gauss is not None and c.n_gauss < 2:
                 raise SceneError(f"{key}.n_gauss = {c.n_gauss}: at least 2")
+            if c.n_gauss is not None:
+                _check_range(c.n_gauss, f"{key}.n_gauss", 2, LIMITS["n_gauss"])
+
+    def _check_steps(self) -> None:
         st = self.steps
         if st.count is not None and st.times is not None:
             raise SceneError("steps: give 'count' or 'times', not both")
         if st.count is not None and st.count < 1:
             raise SceneError(f"steps.count = {st.count}: at least one load step")
+        if st.count is not None:
+            _check_range(st.count, "steps.count", 1, LIMITS["steps"])
         if st.times is not None:
             if (not st.times or st.times[0] <= 0
                     or any(b <= a for a, b in zip(st.times, st.times[1:]))):
                 raise SceneError("steps.times must be a non-empty, strictly increasing list of "
                                  "positive pseudo-times")
+            if len(st.times) > LIMITS["steps"]:
+                raise SceneError(f"steps.times: {len(st.times)} times, more than "
+                                 f"{LIMITS['steps']} load steps")
         if not st.end > 0:
             raise SceneError(f"steps.end = {st.end}: must be positive")
         if st.max_cuts < 0:
             raise SceneError("steps.max_cuts must be >= 0")
-        if st.min_increment is not None and not st.min_increment > 0:
-            raise SceneError("steps.min_increment must be positive")
+        _check_range(st.max_cuts, "steps.max_cuts", 0, LIMITS["max_cuts"],
+                     "each cut halves the increment: 2^-50 is round-off")
+        if st.min_increment is not None:
+            if not st.min_increment > 0:
+                raise SceneError("steps.min_increment must be positive")
+            final = st.targets()[-1]
+            _check_range(st.min_increment, "steps.min_increment", 1e-12 * final, math.inf,
+                         "below 1e-12 of the final time t + dt rounds to t")
+
+    def _check_solver(self) -> None:
         sv = self.solver
         for k in ("atol", "rtol"):
             if not getattr(sv, k) > 0:
                 raise SceneError(f"solver.{k} must be positive")
+        if not sv.rtol <= 1:
+            raise SceneError(f"solver.rtol = {sv.rtol}: must be <= 1 (a relative decrease; 1: "
+                             "none required, atol alone decides)")
         if sv.quadrature_degree < 1:
             raise SceneError("solver.quadrature_degree must be >= 1")
+        _check_range(sv.quadrature_degree, "solver.quadrature_degree", 1,
+                     LIMITS["quadrature_degree"], "the JIT compile time grows fast with it")
         if sv.max_iterations < 1:
             raise SceneError("solver.max_iterations must be >= 1")
-        for k in sv.petsc:
-            if not k.startswith(("-snes_", "-ksp_", "-pc_", "-mat_")):
-                raise SceneError(f"solver.petsc: option {k!r} is not a "
-                                 "-snes_/-ksp_/-pc_/-mat_ option")
-        return self
+        _check_range(sv.max_iterations, "solver.max_iterations", 1, LIMITS["max_iterations"])
+        for k, v in sv.petsc.items():
+            _check_petsc_option(k, v)
 
     def mesh_file(self) -> Path:
         p = Path(self.mesh.file)
@@ -412,6 +519,117 @@ def _unique(names: list[str], key: str) -> None:
         raise SceneError(f"{key}: duplicate name(s) {sorted(dup)}")
 
 
+def _check_finite(obj, key: str) -> None:
+    """Every float anywhere in the scene (lists and tables included) is finite: TOML and
+    Python have nan and inf, and they would otherwise reach the solver as loads or sizes."""
+    if isinstance(obj, float) and not math.isfinite(obj):
+        raise SceneError(f"{key} = {obj}: must be a finite number")
+    if dataclasses.is_dataclass(obj):
+        for f in dataclasses.fields(obj):
+            if f.name != "base_dir":
+                _check_finite(getattr(obj, f.name), f"{key}.{f.name}" if key else f.name)
+    elif isinstance(obj, (list, tuple)):
+        for i, v in enumerate(obj):
+            _check_finite(v, f"{key}[{i}]")
+    elif isinstance(obj, dict):
+        for k, v in obj.items():
+            _check_finite(v, f"{key}.{k}")
+
+
+def _check_range(value, key: str, low, high, why: str = "") -> None:
+    if not low <= value <= high:
+        bound = f">= {low:g}" if high == math.inf else f"in [{low:g}, {high:g}]"
+        raise SceneError(f"{key} = {value}: must be {bound}" + (f" ({why})" if why else ""))
+
+
+def _check_name(name: str, key: str) -> None:
+    """Names that become file names (interface/<pair>_<step>.csv) or labels: a safe
+    pattern, so no name can leave the output directory or break a file system."""
+    if not isinstance(name, str) or not NAME.fullmatch(name):
+        raise SceneError(f"{key} = {name!r}: a name is 1 to 64 letters, digits, '_', '-', "
+                         "'.' or '+', starting with a letter or digit")
+
+
+def _check_group(name: str, key: str) -> None:
+    if not name or "\x00" in name:
+        raise SceneError(f"{key} = {name!r}: not a physical group name")
+
+
+def _check_groups(groups: str | list[str], key: str) -> None:
+    """One group or a non-empty list of distinct groups: an empty list would drop the
+    load or support, a repeated group would apply it twice."""
+    names = _as_list(groups)
+    if not names:
+        raise SceneError(f"{key} = []: name at least one physical group")
+    for n in names:
+        _check_group(n, key)
+    if len(set(names)) < len(names):
+        raise SceneError(f"{key} = {names}: a group named twice (its load or support would "
+                         "count twice)")
+
+
+def _place(place) -> str:
+    return repr(place) if isinstance(place, str) else f"the node of {place[0]!r} at " \
+        f"({place[1]:g}, {place[2]:g})"
+
+
+def _check_mesh_file(path: Path) -> None:
+    """A mesh file must be a regular file: gmsh would block on a FIFO and read a device
+    forever."""
+    try:
+        mode = path.stat().st_mode
+    except OSError:
+        raise SceneError(f"mesh.file: {path} does not exist") from None
+    if stat.S_ISDIR(mode):
+        raise SceneError(f"mesh.file: {path} is a directory, not a gmsh mesh file")
+    if not stat.S_ISREG(mode):
+        raise SceneError(f"mesh.file: {path} is not a regular file (a device, FIFO or socket)")
+
+
+def _check_generator(ms: MeshSource) -> None:
+    """The generator's own parameter checks and its cell estimate (a generator module may
+    define ``cells(cell=..., **params)``), before any meshing: gmsh aborts the process on
+    some geometries and allocates without bound on others."""
+    module = importlib.import_module(f"fenicsx_mortar.meshes.{ms.generator}")
+    estimate = getattr(module, "cells", None)
+    if estimate is None:
+        return
+    try:
+        n = estimate(cell=ms.cell or "quadrilateral", **ms.params)
+    except (TypeError, ValueError) as e:
+        raise SceneError(f"mesh.params for generator {ms.generator!r}: {e}") from None
+    if n > LIMITS["cells"]:
+        raise SceneError(f"mesh.params for generator {ms.generator!r}: about {n:.3g} cells, "
+                         f"more than the limit of {LIMITS['cells']:,} (memory and time)")
+
+
+_PETSC_PREFIXES = ("-snes_", "-ksp_", "-pc_", "-mat_")
+#: options that would replace the convergence rule (docs/scenes.md §2.7) or open a window
+_PETSC_REFUSED = {"-snes_type": "the solver is Newton (newtonls); its convergence rule "
+                                "depends on it",
+                  "-snes_convergence_test": "it would replace the convergence rule"}
+
+
+def _check_petsc_option(k: str, v) -> None:
+    """Before PETSc sees them (guards.check_petsc_options then asks PETSc itself): the
+    option's form, and no value that names a file (a viewer writes where it says)."""
+    if not k.startswith(_PETSC_PREFIXES):
+        raise SceneError(f"solver.petsc: option {k!r} is not a -snes_/-ksp_/-pc_/-mat_ option")
+    if not re.fullmatch(r"-[a-z][a-z0-9_]*", k):
+        raise SceneError(f"solver.petsc: option {k!r} is not an option name "
+                         "(lower-case letters, digits and '_')")
+    if k in _PETSC_REFUSED and not (k == "-snes_type" and v == "newtonls"):
+        raise SceneError(f"solver.petsc: {k} = {v!r}: not allowed ({_PETSC_REFUSED[k]})")
+    if "draw" in k or "_lg_" in k or (isinstance(v, str) and v.split(":")[0] in _WINDOWS):
+        raise SceneError(f"solver.petsc: {k} = {v!r}: would open a window")
+    if isinstance(v, str) and not re.fullmatch(r"[A-Za-z0-9_.+-]*", v):
+        raise SceneError(f"solver.petsc: {k} = {v!r}: a value is a word or a number (no "
+                         "viewer files: outputs go to --out only)")
+
+
+_WINDOWS = ("draw", "x", "socket", "saws", "glvis")
+
+
 # --------------------------------------------------------------------------- TOML → dataclasses
 
 
@@ -419,14 +637,11 @@ def load_scene(path: str | Path) -> Scene:
     """Read and validate a scene file. Raises SceneError with the file and key named."""
     path = Path(path)
     try:
-        text = path.read_text()
-    except OSError as e:
-        raise SceneError(f"{path}: cannot read scene file ({e.strerror})") from None
-    try:
-        data = tomllib.loads(text)
+        data = tomllib.loads(read_text(path, "scene file"))
     except tomllib.TOMLDecodeError as e:
         raise SceneError(f"{path}: TOML syntax error: {e}") from None
     try:
+        _check_unused(data)
         scene = from_dict(Scene, data, "")
         scene.base_dir = str(path.resolve().parent)
         return scene.validate()
@@ -434,18 +649,58 @@ def load_scene(path: str | Path) -> Scene:
         raise SceneError(f"{path}: {e}") from None
 
 
+def _check_unused(data: dict) -> None:
+    """Keys a file gives that the run would not use (the dataclasses cannot tell a given
+    value from a default)."""
+    steps = data.get("steps")
+    if isinstance(steps, dict) and "times" in steps and "end" in steps:
+        raise SceneError("steps.end: unused with 'times' (the run ends at the last time); "
+                         "leave it out")
+
+
+def read_text(path: Path, what: str) -> str:
+    """A regular file of at most LIMITS["scene_bytes"], as UTF-8 text. Checked before
+    opening: a FIFO would block the read, a device (/dev/zero) never end it."""
+    try:
+        st = path.stat()
+    except OSError as e:
+        raise SceneError(f"{path}: cannot read {what} ({e.strerror})") from None
+    if stat.S_ISDIR(st.st_mode):
+        raise SceneError(f"{path}: is a directory, not a {what}")
+    if not stat.S_ISREG(st.st_mode):
+        raise SceneError(f"{path}: is not a regular file (a device, FIFO or socket), not a "
+                         f"{what}")
+    if st.st_size > LIMITS["scene_bytes"]:
+        raise SceneError(f"{path}: {st.st_size:,} bytes; a {what} has at most "
+                         f"{LIMITS['scene_bytes']:,}")
+    try:
+        raw = path.read_bytes()
+    except OSError as e:
+        raise SceneError(f"{path}: cannot read {what} ({e.strerror})") from None
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise SceneError(f"{path}: not UTF-8 text (byte 0x{raw[e.start]:02x} at offset "
+                         f"{e.start})") from None
+
+
 def load_scene_json(path: str | Path) -> Scene:
     """A scene saved by a run (``DIR/scene.json``), for restarts."""
     import json
     path = Path(path)
     try:
-        data = json.loads(path.read_text())
-    except (OSError, ValueError) as e:
+        data = json.loads(read_text(path, "saved scene"))
+    except ValueError as e:
         raise SceneError(f"{path}: cannot read the saved scene ({e})") from None
+    if not isinstance(data, dict):
+        raise SceneError(f"{path}: the saved scene is not a JSON object")
     base_dir = data.pop("base_dir", ".")
-    scene = from_dict(Scene, data, "")
-    scene.base_dir = base_dir
-    return scene.validate()
+    try:
+        scene = from_dict(Scene, data, "")
+        scene.base_dir = base_dir if isinstance(base_dir, str) else "."
+        return scene.validate()
+    except SceneError as e:
+        raise SceneError(f"{path}: {e}") from None
 
 
 def from_dict(cls, data: dict, path: str):

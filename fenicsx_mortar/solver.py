@@ -20,6 +20,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from . import _dolfinx as dx
+from . import guards
 from .scene import SolverSettings, Steps
 from .system import DisplacementSystem, MultiplierSystem
 
@@ -125,6 +126,8 @@ class NewtonSolver:
         self._r0 = None
         self._r_ref = 0.0
         self._cycle = None
+        #: a converged step's last check (guards.StepGuard): a reason it is not, or None
+        self.check_solution: Callable[[], str | None] = lambda: None
         comm = u.function_space.mesh.comm
         self.snes = PETSc.SNES().create(comm)
         self._prefix = prefix = prefix or f"fm{id(self)}_"
@@ -223,7 +226,11 @@ class NewtonSolver:
             self.monitor.begin_solve()
             self._callback_time = 0.0
             t0 = time.perf_counter()
-            self.snes.solve(None, self.x)
+            try:
+                self.snes.solve(None, self.x)
+            except PETSc.Error as e:  # a failed factorization, say: the step fails
+                res.reason = guards.petsc_failure(self.snes, e)
+                return res
             self.timings["linear_solve"] = (self.timings.get("linear_solve", 0.0)
                                             + time.perf_counter() - t0 - self._callback_time)
             reason = self.snes.getConvergedReason()
@@ -237,10 +244,13 @@ class NewtonSolver:
                 res.reason = f"Newton failed: {_REASONS.get(reason, reason)} after " \
                              f"{self.snes.getIterationNumber()} iterations, residuals " \
                              + ", ".join(f"{r:.3e}" for r in self.history)
+                if reason == PETSc.SNES.ConvergedReason.DIVERGED_LINEAR_SOLVE:
+                    res.reason += "; " + guards.linear_failure(self.snes)
                 return res
             self._set_iterate(self.x)
             if not any([h.augment() for h in self.hooks]):
-                res.converged, res.augmentations = True, aug
+                res.reason = self.check_solution() or ""
+                res.converged, res.augmentations = not res.reason, aug
                 return res
         res.reason = f"augmented Lagrangian: KKT not reached in {max_augmentations} augmentations"
         return res

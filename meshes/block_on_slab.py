@@ -1,11 +1,10 @@
 """B5 frictional block on a slab: two structured rectangles with non-matching meshes."""
 from __future__ import annotations
 
-from numbers import Integral
-
 import gmsh
 
-_CELLS = ("quadrilateral", "triangle")
+from . import _checks
+
 _SIDES = ("bottom", "right", "top", "left")
 
 
@@ -30,12 +29,7 @@ def build(model, *, cell: str = "quadrilateral", block_nx: int = 10, block_ny: i
                "slab_top" [9] (y = 1, master), "slab_left" [10] (x = -1).
     Nodes lie at all four corners of each body.
     """
-    if cell not in _CELLS:
-        raise ValueError(f"cell must be one of {_CELLS}, got {cell!r}")
-    for name, value in dict(block_nx=block_nx, block_ny=block_ny,
-                            slab_nx=slab_nx, slab_ny=slab_ny).items():
-        if isinstance(value, bool) or not isinstance(value, Integral) or value < 1:
-            raise ValueError(f"{name} must be a positive integer, got {value!r}")
+    cells(cell=cell, block_nx=block_nx, block_ny=block_ny, slab_nx=slab_nx, slab_ny=slab_ny)
     # Options are global to the gmsh session: reset those a previous build may have changed.
     gmsh.option.setNumber("Mesh.ElementOrder", 1)
     gmsh.option.setNumber("Mesh.RecombineAll", 0)
@@ -53,6 +47,14 @@ def build(model, *, cell: str = "quadrilateral", block_nx: int = 10, block_ny: i
     wanted = 3 if cell == "quadrilateral" else 2  # gmsh element types: 3 = quad4, 2 = tri3
     if list(model.mesh.getElementTypes(2)) != [wanted]:
         raise RuntimeError(f"mesh is not all {cell}: {model.mesh.getElementTypes(2)}")
+
+
+def cells(*, cell: str = "quadrilateral", block_nx: int = 10, block_ny: int = 5,
+          slab_nx: int = 24, slab_ny: int = 8) -> int:
+    """The number of cells ``build`` makes, after its parameter checks (ValueError)."""
+    per_quad = _checks.cell(cell)
+    _checks.divisions(block_nx=block_nx, block_ny=block_ny, slab_nx=slab_nx, slab_ny=slab_ny)
+    return per_quad * (block_nx * block_ny + slab_nx * slab_ny)
 
 
 def _rectangle(model, x0: float, y0: float, width: float, height: float,

@@ -2,11 +2,10 @@
 from __future__ import annotations
 
 import math
-from numbers import Integral
 
 import gmsh
 
-_CELLS = ("quadrilateral", "triangle")
+from . import _checks
 
 
 def build(model, *, cell: str = "quadrilateral", fixed_nr: int = 4, fixed_nc: int = 32,
@@ -34,12 +33,8 @@ def build(model, *, cell: str = "quadrilateral", fixed_nr: int = 4, fixed_nc: in
     Each arc is made of two gmsh curves (a circle arc must be shorter than pi), cut at the
     grid angle pi + pi*(nc//2)/nc, i.e. at the lowest point (0, -r) when nc is even.
     """
-    if cell not in _CELLS:
-        raise ValueError(f"cell must be one of {_CELLS}, got {cell!r}")
-    for name, value, low in (("fixed_nr", fixed_nr, 1), ("fixed_nc", fixed_nc, 2),
-                             ("moving_nr", moving_nr, 1), ("moving_nc", moving_nc, 2)):
-        if isinstance(value, bool) or not isinstance(value, Integral) or value < low:
-            raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
+    cells(cell=cell, fixed_nr=fixed_nr, fixed_nc=fixed_nc, moving_nr=moving_nr,
+          moving_nc=moving_nc)
     # Options are global to the gmsh session: reset those a previous build may have changed.
     gmsh.option.setNumber("Mesh.ElementOrder", 1)
     gmsh.option.setNumber("Mesh.RecombineAll", 0)
@@ -58,6 +53,15 @@ def build(model, *, cell: str = "quadrilateral", fixed_nr: int = 4, fixed_nc: in
     wanted = 3 if cell == "quadrilateral" else 2  # gmsh element types: 3 = quad4, 2 = tri3
     if list(model.mesh.getElementTypes(2)) != [wanted]:
         raise RuntimeError(f"mesh is not all {cell}: {model.mesh.getElementTypes(2)}")
+
+
+def cells(*, cell: str = "quadrilateral", fixed_nr: int = 4, fixed_nc: int = 32,
+          moving_nr: int = 4, moving_nc: int = 60) -> int:
+    """The number of cells ``build`` makes, after its parameter checks (ValueError)."""
+    per_quad = _checks.cell(cell)
+    _checks.divisions(fixed_nr=fixed_nr, moving_nr=moving_nr)
+    _checks.divisions(2, fixed_nc=fixed_nc, moving_nc=moving_nc)
+    return per_quad * (fixed_nr * fixed_nc + moving_nr * moving_nc)
 
 
 def _half_annulus(model, r_in: float, r_out: float, nr: int, nc: int, cell: str

@@ -1,9 +1,11 @@
 """B2 Hertz: half-disk resting on a block, refined around the contact point (0, 0)."""
 from __future__ import annotations
 
+import math
+
 import gmsh
 
-_CELLS = ("quadrilateral", "triangle")
+from . import _checks
 
 
 def build(model, *, cell: str = "quadrilateral", h_contact: float = 0.05, h_far: float = 0.1,
@@ -26,9 +28,9 @@ def build(model, *, cell: str = "quadrilateral", h_contact: float = 0.05, h_far:
     Parameters (keyword only, defaults in brackets):
         cell:          "quadrilateral" [default] or "triangle".
         h_contact:     element size near the contact point [0.05], > 0.
-        h_far:         element size away from it [0.1], >= h_contact.
-        R:             half-disk radius [1.0], > 0.
-        refine_radius: radius of the uniformly refined zone around (0, 0) [0.15], >= 0.
+        h_far:         element size away from it [0.1], >= h_contact, <= min(R, 1)/4.
+        R:             half-disk radius [1.0], in [1e-3, 1e3].
+        refine_radius: radius of the uniformly refined zone around (0, 0) [0.15], in [0, 1e3].
         grade_to:      distance from (0, 0) where the size reaches h_far [None: see above],
                        > refine_radius.
 
@@ -43,21 +45,10 @@ def build(model, *, cell: str = "quadrilateral", h_contact: float = 0.05, h_far:
     (0, 0.5) for R = 1), (0, 0) on the disk arc AND on the block top (one node each), and
     (0, -1) (block bottom).
     """
-    if cell not in _CELLS:
-        raise ValueError(f"cell must be one of {_CELLS}, got {cell!r}")
-    for name, value in (("h_contact", h_contact), ("h_far", h_far), ("R", R)):
-        if not value > 0:
-            raise ValueError(f"{name} must be > 0, got {value!r}")
-    if not h_far >= h_contact:
-        raise ValueError(f"h_far must be >= h_contact, got h_far={h_far!r}, "
-                         f"h_contact={h_contact!r}")
-    if not refine_radius >= 0:
-        raise ValueError(f"refine_radius must be >= 0, got {refine_radius!r}")
+    cells(cell=cell, h_contact=h_contact, h_far=h_far, R=R, refine_radius=refine_radius,
+          grade_to=grade_to)
     if grade_to is None:
         grade_to = refine_radius + 5.0 * (h_far - h_contact)
-    elif not grade_to > refine_radius:
-        raise ValueError(f"grade_to must be > refine_radius, got grade_to={grade_to!r}, "
-                         f"refine_radius={refine_radius!r}")
     _set_options(cell)
     occ = model.occ
 
@@ -111,6 +102,48 @@ def build(model, *, cell: str = "quadrilateral", h_contact: float = 0.05, h_far:
         field.setNumber(threshold, "SizeMin", h_contact * shrink)
         field.setNumber(threshold, "SizeMax", h_far * shrink)
     raise RuntimeError(f"mesh is not all {cell}: {model.mesh.getElementTypes(2)}")
+
+
+def cells(*, cell: str = "quadrilateral", h_contact: float = 0.05, h_far: float = 0.1,
+          R: float = 1.0, refine_radius: float = 0.15, grade_to: float | None = None) -> int:
+    """About the number of cells ``build`` makes (an estimate from the size field: the
+    mesh is unstructured), after its parameter checks (ValueError). The elements must fit
+    the bodies (h_far <= min(R, 1)/4): larger ones make gmsh abort the process."""
+    per_area = 1.15 * _checks.cell(cell)
+    for name, value in (("h_contact", h_contact), ("h_far", h_far), ("R", R),
+                        ("refine_radius", refine_radius)):
+        _checks.number(name, value)
+    _checks.lengths(h_contact=h_contact, h_far=h_far)
+    if not 1e-3 <= R <= 1e3:
+        raise ValueError(f"R must lie in [1e-3, 1e3], got {R!r}")
+    if not h_far >= h_contact:
+        raise ValueError(f"h_far must be >= h_contact, got h_far={h_far!r}, "
+                         f"h_contact={h_contact!r}")
+    if not h_far <= min(R, 1.0) / 4:
+        raise ValueError(f"h_far must be <= min(R, 1)/4 = {min(R, 1.0) / 4:g} (four elements "
+                         f"across the thinner body), got {h_far!r}")
+    if not 0 <= refine_radius <= 1e3:
+        raise ValueError(f"refine_radius must lie in [0, 1e3], got {refine_radius!r}")
+    if grade_to is None:
+        grade_to = refine_radius + 5.0 * (h_far - h_contact)
+    else:
+        _checks.number("grade_to", grade_to)
+        if not refine_radius < grade_to <= 1e3:
+            raise ValueError(f"grade_to must be > refine_radius and <= 1e3, got "
+                             f"grade_to={grade_to!r}, refine_radius={refine_radius!r}")
+    # cells per area 1.15/h^2 (quadrilaterals; triangles 2.3/h^2): h_contact within
+    # refine_radius of the contact point, growing linearly to h_far at grade_to (the
+    # Threshold field); the integral of 2 pi r / h(r)^2 over that ring is closed
+    area = 2.0 + 0.5 * math.pi * R * R
+    r0, r1, hc, hf = refine_radius, grade_to, h_contact, h_far
+    fine = min(math.pi * r0 * r0, area) / hc ** 2
+    if hf > hc:
+        k = (hf - hc) / (r1 - r0)
+        ring = 2.0 * math.pi / k * ((r0 - hc / k) * (1.0 / hc - 1.0 / hf)
+                                    + math.log(hf / hc) / k)
+    else:
+        ring = math.pi * (r1 * r1 - r0 * r0) / hc ** 2
+    return int(per_area * (fine + ring + area / hf ** 2))
 
 
 def _set_options(cell: str) -> None:

@@ -2,11 +2,11 @@
 from __future__ import annotations
 
 import math
-from numbers import Integral
 
 import gmsh
 
-_CELLS = ("quadrilateral", "triangle")
+from . import _checks
+
 _CX, _CY, _R = 1.2, 5.02, 1.0   # half-disk centre and radius: lowest tool point y = 4.02
 _H = 1.0                        # height of the tool's rectangle [0.2, 2.2] x [5.02, 6.02]
 
@@ -37,11 +37,7 @@ def build(model, *, cell: str = "quadrilateral", nx: int = 70, ny: int = 10,
                (x = 0.2 and x = 2.2, y in [5.02, 6.02]), "tool_top" [9] (y = 6.02).
     The half-disk's flat edge y = 5.02 is interior to the tool (not a boundary).
     """
-    if cell not in _CELLS:
-        raise ValueError(f"cell must be one of {_CELLS}, got {cell!r}")
-    for name, value, low in (("nx", nx, 1), ("ny", ny, 1), ("n_arc", n_arc, 4)):
-        if isinstance(value, bool) or not isinstance(value, Integral) or value < low:
-            raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
+    cells(cell=cell, nx=nx, ny=ny, n_arc=n_arc)
     # Options are global to the gmsh session: reset those a previous build may have changed.
     gmsh.option.setNumber("Mesh.ElementOrder", 1)
     gmsh.option.setNumber("Mesh.RecombineAll", 0)
@@ -124,3 +120,14 @@ def build(model, *, cell: str = "quadrilateral", nx: int = 70, ny: int = 10,
     wanted = 3 if cell == "quadrilateral" else 2  # gmsh element types: 3 = quad4, 2 = tri3
     if list(mesh.getElementTypes(2)) != [wanted]:
         raise RuntimeError(f"mesh is not all {cell}: {mesh.getElementTypes(2)}")
+
+
+def cells(*, cell: str = "quadrilateral", nx: int = 70, ny: int = 10, n_arc: int = 18) -> int:
+    """The number of cells ``build`` makes, after its parameter checks (ValueError)."""
+    per_quad = _checks.cell(cell)
+    _checks.divisions(nx=nx, ny=ny)
+    _checks.divisions(4, n_arc=n_arc)
+    n1 = n_arc // 4
+    n2 = n_arc - 2 * n1
+    tool = n1 * (2 * n1 + n2) + n2 * n1 + n_arc * (n_arc // 2)
+    return per_quad * (nx * ny + tool)

@@ -1,11 +1,9 @@
 """B1 contact patch test: a small block resting on a larger one, non-matching meshes."""
 from __future__ import annotations
 
-from numbers import Integral
-
 import gmsh
 
-_CELLS = ("quadrilateral", "triangle")
+from . import _checks
 
 
 def build(model, *, cell: str = "quadrilateral", lower_nx: int = 16, lower_ny: int = 8,
@@ -40,12 +38,7 @@ def build(model, *, cell: str = "quadrilateral", lower_nx: int = 16, lower_ny: i
     Support points: mesh nodes lie exactly at (2, 0) on the lower block and (2, 3) on the
     upper block (and at (1, 2), (3, 2) on the lower top).
     """
-    _check_cell(cell)
-    _check_divisions(lower_nx=lower_nx, lower_ny=lower_ny, upper_nx=upper_nx, upper_ny=upper_ny)
-    if lower_nx % 4:
-        raise ValueError(f"lower_nx must be a multiple of 4 (nodes at x = 1, 2, 3), got {lower_nx}")
-    if upper_nx % 2:
-        raise ValueError(f"upper_nx must be even (node at x = 2), got {upper_nx}")
+    cells(cell=cell, lower_nx=lower_nx, lower_ny=lower_ny, upper_nx=upper_nx, upper_ny=upper_ny)
     _set_options()
     occ = model.occ
 
@@ -86,15 +79,16 @@ def build(model, *, cell: str = "quadrilateral", lower_nx: int = 16, lower_ny: i
     _check_cells(model, cell)
 
 
-def _check_cell(cell: str) -> None:
-    if cell not in _CELLS:
-        raise ValueError(f"cell must be one of {_CELLS}, got {cell!r}")
-
-
-def _check_divisions(**values: int) -> None:
-    for name, value in values.items():
-        if isinstance(value, bool) or not isinstance(value, Integral) or value < 1:
-            raise ValueError(f"{name} must be a positive integer, got {value!r}")
+def cells(*, cell: str = "quadrilateral", lower_nx: int = 16, lower_ny: int = 8,
+          upper_nx: int = 20, upper_ny: int = 4) -> int:
+    """The number of cells ``build`` makes, after its parameter checks (ValueError)."""
+    per_quad = _checks.cell(cell)
+    _checks.divisions(lower_nx=lower_nx, lower_ny=lower_ny, upper_nx=upper_nx, upper_ny=upper_ny)
+    if lower_nx % 4:
+        raise ValueError(f"lower_nx must be a multiple of 4 (nodes at x = 1, 2, 3), got {lower_nx}")
+    if upper_nx % 2:
+        raise ValueError(f"upper_nx must be even (node at x = 2), got {upper_nx}")
+    return per_quad * (lower_nx * lower_ny + upper_nx * upper_ny)
 
 
 def _set_options() -> None:

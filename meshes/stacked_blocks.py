@@ -5,11 +5,10 @@ nodes, a slave surface overhanging the master's ends, initial penetration, densi
 """
 from __future__ import annotations
 
-from numbers import Integral, Real
-
 import gmsh
 
-_CELLS = ("quadrilateral", "triangle")
+from . import _checks
+
 _SIDES = ("bottom", "right", "top", "left")
 
 
@@ -41,18 +40,9 @@ def build(model, *, cell: str = "quadrilateral",
     Nodes lie at every grid point (corners included); a node falls on the vertical centre
     line of a block when its nx is even.
     """
-    if cell not in _CELLS:
-        raise ValueError(f"cell must be one of {_CELLS}, got {cell!r}")
-    for name, value in dict(lower_nx=lower_nx, lower_ny=lower_ny,
-                            upper_nx=upper_nx, upper_ny=upper_ny).items():
-        if isinstance(value, bool) or not isinstance(value, Integral) or value < 1:
-            raise ValueError(f"{name} must be a positive integer, got {value!r}")
-    for name, value in dict(lower_width=lower_width, lower_height=lower_height,
-                            upper_width=upper_width, upper_height=upper_height).items():
-        if isinstance(value, bool) or not isinstance(value, Real) or not value > 0:
-            raise ValueError(f"{name} must be a positive number, got {value!r}")
-    if not gap > -upper_height:
-        raise ValueError(f"gap must be > -upper_height, got {gap!r}")
+    cells(cell=cell, lower_x0=lower_x0, lower_width=lower_width, lower_height=lower_height,
+          lower_nx=lower_nx, lower_ny=lower_ny, upper_x0=upper_x0, upper_width=upper_width,
+          upper_height=upper_height, upper_nx=upper_nx, upper_ny=upper_ny, gap=gap)
     gmsh.option.setNumber("Mesh.ElementOrder", 1)
     gmsh.option.setNumber("Mesh.RecombineAll", 0)
     gmsh.option.setNumber("Mesh.SubdivisionAlgorithm", 0)
@@ -70,6 +60,22 @@ def build(model, *, cell: str = "quadrilateral",
     wanted = 3 if cell == "quadrilateral" else 2
     if list(model.mesh.getElementTypes(2)) != [wanted]:
         raise RuntimeError(f"mesh is not all {cell}: {model.mesh.getElementTypes(2)}")
+
+
+def cells(*, cell: str = "quadrilateral",
+          lower_x0: float = 0.0, lower_width: float = 2.0, lower_height: float = 1.0,
+          lower_nx: int = 8, lower_ny: int = 4,
+          upper_x0: float = 0.5, upper_width: float = 1.0, upper_height: float = 0.5,
+          upper_nx: int = 8, upper_ny: int = 4, gap: float = 0.0) -> int:
+    """The number of cells ``build`` makes, after its parameter checks (ValueError)."""
+    per_quad = _checks.cell(cell)
+    _checks.divisions(lower_nx=lower_nx, lower_ny=lower_ny, upper_nx=upper_nx, upper_ny=upper_ny)
+    _checks.lengths(lower_width=lower_width, lower_height=lower_height,
+                    upper_width=upper_width, upper_height=upper_height)
+    _checks.coordinates(lower_x0=lower_x0, upper_x0=upper_x0, gap=gap)
+    if not gap > -upper_height:
+        raise ValueError(f"gap must be > -upper_height, got {gap!r}")
+    return per_quad * (lower_nx * lower_ny + upper_nx * upper_ny)
 
 
 def _rectangle(model, x0, y0, width, height, nx, ny, cell):

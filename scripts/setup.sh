@@ -30,3 +30,7 @@ if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
   .venv/bin/python -m pip install -q --no-build-isolation --no-deps -e . 
   touch "$stamp"
 fi
+# Test dependencies Debian does not package: hypothesis (the scene loader's property test).
+if ! .venv/bin/python -c "import hypothesis" 2>/dev/null; then
+  .venv/bin/python -m pip install -q "hypothesis>=6"
+fi

@@ -1,0 +1,249 @@
+"""Physics and input guards of the scene runner: no answer is accepted that is not a
+converged physical solution, and no input the solver would choke on reaches it unnamed.
+
+* :func:`check_petsc_options` asks PETSc itself, before meshing, whether it takes every
+  option of ``solver.petsc`` (a value it rejects, an option it never reads);
+* :func:`check_tolerance` compares ``solver.atol`` with the loads' residual scale;
+* :class:`StepGuard` is the solver's last word on a converged load step: the SNES stopped
+  by the convergence rule, and the solution inverts no cell (J = det F ≤ 0 at a quadrature
+  point: SVK, say, has such solutions); otherwise the step failed (it is cut, then the run
+  stops saying which cells);
+* :func:`linear_failure` turns a failed factorization (MUMPS INFOG(1) < 0, a zero pivot)
+  into the step's failure message;
+* :func:`penetration_warning`: a penalty pair whose penetration exceeds a tenth of the
+  local slave element size (the answer is then far from the contact constraint).
+"""
+from __future__ import annotations
+
+import ctypes
+import ctypes.util
+
+import numpy as np
+import ufl
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from . import _dolfinx as dx
+from .scene import Scene, SceneError, SolverSettings
+
+#: atol against the loads' residual scale: above, u = 0 passes as converged; below, it is
+#: round-off
+ATOL_RANGE = (1e-15, 1e-3)
+
+
+# ----------------------------------------------------------------------------- PETSc
+
+
+def _libpetsc():
+    """The loaded PETSc library (petsc4py's), for the calls petsc4py 3.18 lacks."""
+    with open("/proc/self/maps") as f:
+        paths = {line.split()[-1] for line in f if "libpetsc" in line and "/" in line}
+    path = next(iter(sorted(paths)), None) or ctypes.util.find_library("petsc_real")
+    return ctypes.CDLL(path) if path else None
+
+
+def _petsc_message(code: int) -> str:
+    lib = _libpetsc()
+    text = ctypes.c_char_p()
+    if lib is not None and lib.PetscErrorMessage(code, ctypes.byref(text), None) == 0 \
+            and text.value:
+        return text.value.decode(errors="replace")
+    return f"PETSc error {code}"
+
+
+def _probe(settings: SolverSettings, user: dict) -> list[str]:
+    """Apply the solver's options (defaults, then ``user``) to a throw-away SNES on this
+    process as NewtonSolver does, and return the user options PETSc did not read. Raises
+    PETSc.Error if PETSc rejects one."""
+    from .solver import _linear_solver_options
+    prefix = "fmcheck_"
+    options = {"snes_type": "newtonls", "snes_linesearch_type": settings.line_search,
+               "snes_max_it": settings.max_iterations}
+    options.update(_linear_solver_options(settings.linear_solver))
+    options.update(user)
+    opts = PETSc.Options()
+    for k, v in options.items():
+        opts[prefix + k] = v
+    A = PETSc.Mat().createAIJ([2, 2], nnz=1, comm=PETSc.COMM_SELF)
+    snes = PETSc.SNES().create(PETSc.COMM_SELF)
+    try:
+        A.setUp()
+        A.assemble()
+        snes.setOptionsPrefix(prefix)
+        snes.setFunction(lambda s, x, f: x.copy(f), A.createVecLeft())
+        snes.setJacobian(lambda s, x, J, P: None, A)
+        snes.setFromOptions()
+        snes.getKSP().setFromOptions()
+        lib = _libpetsc()
+        if lib is None:
+            return []
+        unused = []
+        for k in user:
+            flag = ctypes.c_int(0)
+            lib.PetscOptionsUsed(None, (prefix + k).encode(), ctypes.byref(flag))
+            if not flag.value:
+                unused.append(k)
+        return unused
+    finally:
+        for k in options:
+            opts.delValue(prefix + k)
+        snes.destroy()
+        A.destroy()
+
+
+def check_petsc_options(settings: SolverSettings) -> None:
+    """Every ``solver.petsc`` option is taken by PETSc and read when the solver is set up
+    (an option read later, e.g. ``-mat_mumps_*`` at the first factorization, or never, as
+    ``-snes_foo``, would be silently ignored). Raises SceneError naming the option."""
+    user = {k.lstrip("-"): "" if v is True else ("false" if v is False else str(v))
+            for k, v in settings.petsc.items()}
+    if not user:
+        return
+    try:
+        unused = _probe(settings, user)
+    except PETSc.Error:
+        for k, v in user.items():   # which one: alone with the defaults
+            try:
+                _probe(settings, {k: v})
+            except PETSc.Error as e:
+                raise SceneError(f"solver.petsc: -{k} = {v!r}: PETSc rejects it "
+                                 f"({_petsc_message(e.ierr)})") from None
+        raise SceneError("solver.petsc: PETSc rejects these options together") from None
+    if unused:
+        raise SceneError(f"solver.petsc: -{unused[0]}: not read by PETSc when the solver is "
+                         "set up (unknown, misspelt, not for this solver, or read too late to "
+                         "take effect)" + (f"; also {', '.join('-' + k for k in unused[1:])}"
+                                           if unused[1:] else ""))
+
+
+def linear_failure(snes) -> str:
+    """Why the linear solve of the last Newton iteration failed: the KSP's reason and, for
+    a MUMPS factorization, INFOG(1) and INFOG(2)."""
+    ksp = snes.getKSP()
+    reasons = {v: k for k, v in vars(PETSc.KSP.ConvergedReason).items() if isinstance(v, int)}
+    return f"the linear solve failed ({reasons.get(ksp.getConvergedReason(), 'unknown')}" \
+           f"{_mumps_info(ksp.getPC())})"
+
+
+def petsc_failure(snes, error: PETSc.Error) -> str:
+    """The step's failure message for a PETSc error raised inside SNESSolve (e.g. a failed
+    factorization with -ksp_error_if_not_converged)."""
+    return f"PETSc error in the Newton solve: {_petsc_message(error.ierr)}" \
+           f"{_mumps_info(snes.getKSP().getPC())}"
+
+
+def _mumps_info(pc) -> str:
+    try:
+        if pc.getType() not in ("lu", "cholesky") or pc.getFactorSolverType() != "mumps":
+            return ""
+        F = pc.getFactorMatrix()
+        info = F.getMumpsInfog(1)
+    except PETSc.Error:
+        return ""
+    if info >= 0:
+        return ""
+    return f", MUMPS factorization failed: INFOG(1) = {info}, INFOG(2) = " \
+           f"{F.getMumpsInfog(2)}{_MUMPS.get(info, '')}"
+
+
+_MUMPS = {-10: ": the matrix is numerically singular (a body or a direction left free?)",
+          -8: ": the workspace is too small", -9: ": the workspace is too small",
+          -13: ": out of memory", -19: ": the memory limit ICNTL(23) is too small"}
+
+
+# ---------------------------------------------------------------------- tolerances
+
+
+def check_tolerance(scene: Scene, bulk, samples: int = 16) -> None:
+    """``solver.atol`` within ATOL_RANGE of the loads' residual scale: the largest ‖R(u =
+    0)‖ (bulk forms, Dirichlet rows included, as Newton's first residual) over up to
+    ``samples`` load-step targets. A scene without loads (scale 0) is not checked.
+    Collective; call before the first step (u = 0)."""
+    targets = scene.steps.targets()
+    pick = sorted({round(i * (len(targets) - 1) / max(samples - 1, 1))
+                   for i in range(min(samples, len(targets)))})
+    b = dx.create_vector(bulk.residual)
+    x = b.duplicate()
+    x.set(0.0)
+    scale = 0.0
+    for i in pick:
+        bulk.set_time(targets[i])
+        dx.assemble_residual(b, bulk.residual, bulk.jacobian, bulk.bcs, x)
+        scale = max(scale, b.norm())
+    bulk.set_time(0.0)
+    b.destroy()
+    x.destroy()
+    atol = scene.solver.atol
+    low, high = ATOL_RANGE
+    if scale > 0 and not low * scale <= atol <= high * scale:
+        raise SceneError(f"solver.atol = {atol:g}: must lie in [{low:g}, {high:g}] x the loads' "
+                         f"residual scale {scale:.3g} (|R| at u = 0 over the load steps): "
+                         + ("a larger atol passes u = 0 as converged" if atol > high * scale
+                            else "a smaller one is below round-off"))
+
+
+# ---------------------------------------------------------------------- step guard
+
+
+class StepGuard:
+    """``solver.check_solution``: None for a physical converged state, else why not."""
+
+    def __init__(self, scene: Scene, bulk, solver):
+        dom = bulk.domain
+        self.msh, self.solver = dom.mesh, solver
+        F = ufl.Identity(2) + ufl.grad(bulk.u)
+        self.J = dx.quadrature_expression(ufl.det(F), self.msh, scene.solver.quadrature_degree)
+        self.cells = np.arange(dx.num_owned_cells(self.msh), dtype=np.int32)
+        names = {dom.cell_groups[b.group]: b.name for b in scene.bodies}
+        body = np.full(dx.num_cells(self.msh), -1)
+        body[dom.cell_tags.indices] = dom.cell_tags.values
+        self.body = [names.get(int(t), "?") for t in body[self.cells]]
+
+    def __call__(self) -> str | None:
+        reason = self.solver.snes.getConvergedReason()
+        if reason != PETSc.SNES.ConvergedReason.CONVERGED_FNORM_ABS:
+            return (f"the SNES stopped with reason {reason}, not by the convergence rule "
+                    "(a PETSc option replaced it?)")
+        return self.inverted()
+
+    def inverted(self) -> str | None:
+        """Which cells have J ≤ 0 at a quadrature point (collective)."""
+        comm = self.msh.comm
+        J = self.J.eval(self.cells).reshape(len(self.cells), -1).min(axis=1)
+        bad = np.flatnonzero(J <= 0)
+        count = comm.allreduce(len(bad), op=MPI.SUM)
+        if count == 0:
+            return None
+        worst = bad[np.argsort(J[bad])[:5]]
+        mids = dx.cell_midpoints(self.msh, self.cells[worst])
+        mine = [(float(J[c]), self.body[c], m) for c, m in zip(worst, mids)]
+        found = sorted(sum(comm.allgather(mine), []), key=lambda r: r[0])[:5]
+        where = ", ".join(f"{b!r} at ({m[0]:.4g}, {m[1]:.4g}) J = {j:.3g}"
+                          for j, b, m in found)
+        return (f"the solution inverts {count} cell(s) (J = det F <= 0 at a quadrature point, "
+                f"not a physical deformation): {where}")
+
+
+def penetration_warning(pair, step: int) -> str | None:
+    """For a penalty pair: the largest penetration −g̃_j/A_j against a tenth of the slave
+    node's element size (its segments' mean reference length), or None."""
+    st, s = pair.state, pair.slave
+    if st is None or not len(s.seg):
+        return None
+    A = st.A
+    pen = np.where(A > 0, -st.g / np.where(A > 0, A, 1.0), 0.0)
+    length = np.linalg.norm(s.X[s.seg[:, 1]] - s.X[s.seg[:, 0]], axis=1)
+    size, count = np.zeros(s.n), np.zeros(s.n)
+    for col in (0, 1):
+        np.add.at(size, s.seg[:, col], length)
+        np.add.at(count, s.seg[:, col], 1.0)
+    size /= np.maximum(count, 1.0)
+    ratio = pen / np.where(size > 0, size, np.inf)
+    j = int(np.argmax(ratio))
+    if not ratio[j] > 0.1:
+        return None
+    x = st.xs[j]
+    return (f"contact {pair.name}: penetration {pen[j]:.3g} at slave node ({x[0]:.4g}, "
+            f"{x[1]:.4g}) in step {step} exceeds a tenth of the local slave element size "
+            f"{size[j]:.3g}: the penalty is too soft for this load (raise "
+            "enforcement.epsilon, or use type = 'alm')")

@@ -1,0 +1,719 @@
+"""The hostile inputs (issue 18): scenes, files, paths, checkpoints, signals and faults a
+hostile user can hand to ``fenicsx-mortar``, each with the outcome it must get.
+
+A :class:`Case` says how to lay its inputs out in a fresh directory D (``D/scene.toml``,
+extra files, a donor run to restart from), the command line (``{scene}``, ``{out}`` =
+``D/out`` and ``{dir}`` = D are filled in; the working directory is ``D/work``), and what
+must come out: the exit code, a word of the message (the key or file at fault), and for some
+cases more (summary.json untouched, a warning recorded). Every case also must print no
+traceback and write nothing outside ``D/out``. ``stage = "scene"`` cases must be refused
+before meshing starts.
+
+Used by tests/test_hostile.py (the assertions, run by ``make test``) and by
+tests/hostile/outcomes.py (the table of outcomes by kind, on any version of the code).
+"""
+from __future__ import annotations
+
+import copy
+import json
+import math
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import time
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from ._toml import dumps
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parents[1]
+MESHES = HERE / "meshes"
+NAN, INF = math.nan, math.inf
+DELETE = object()
+#: the block on a slab of tests/bad_input/_base.toml: 2 steps, ~1 s
+BASE = tomllib.loads((ROOT / "tests/bad_input/_base.toml").read_text())
+#: a unit square from a mesh file (tests/hostile/meshes/square.msh, 4 quadrilaterals)
+SQUARE = {
+    "title": "square from a file",
+    "mesh": {"file": "square.msh"},
+    "bodies": [{"name": "block", "material": {"model": "neo-hooke", "E": 1000.0, "nu": 0.3}}],
+    "dirichlet": [{"boundary": "bottom", "x": 0.0, "y": 0.0}],
+    "pressures": [{"boundary": "top", "value": 10.0}],
+    "steps": {"count": 1},
+    "output": {"xdmf": False, "plots": False},
+}
+#: a generator-made block (meshes/block.py), for its parameters
+BLOCK = {**copy.deepcopy(SQUARE), "mesh": {"generator": "block", "params": {"nx": 2, "ny": 2}}}
+
+
+def edit(doc: dict, *changes) -> dict:
+    """A deep copy of ``doc`` with ``(path, value)`` changes: ``"bodies[0].material.E"``;
+    value DELETE removes the key; a path ending in ``[+]`` appends to a list."""
+    doc = copy.deepcopy(doc)
+    for path, value in changes:
+        value = value if value is DELETE else copy.deepcopy(value)
+        parts = re.findall(r"[^.\[\]]+|\[\d+\]|\[\+\]", path)
+        node = doc
+        for p in parts[:-1]:
+            node = node[int(p[1:-1])] if p.startswith("[") else node.setdefault(p, {})
+        last = parts[-1]
+        if last == "[+]":
+            node.append(value)
+        elif last.startswith("["):
+            node[int(last[1:-1])] = value
+        elif value is DELETE:
+            del node[last]
+        else:
+            node[last] = value
+    return doc
+
+
+def base(*changes) -> dict:
+    return edit(BASE, *changes)
+
+
+@dataclass
+class Case:
+    id: str
+    expect: int                           # exit code
+    key: str                              # must be in the message (stderr; stdout too for 0/1)
+    scene: dict | str | bytes | None = None
+    argv: tuple[str, ...] = ("run", "{scene}", "--out", "{out}")
+    files: dict = field(default_factory=dict)     # name in D -> Path (copied), str or bytes
+    prepare: Callable | None = None       # prepare(D, donors) lays out more inputs
+    check: Callable | None = None         # check(D, stdout, stderr) -> what is wrong, or ""
+    stage: str = "scene"                  # "scene": refused before meshing; "mesh"; "run"
+    hazard: str = "wrong"                 # an exit 0 would be: a "wrong" answer, the value
+    #                                       "ignored", or a value "unchecked" (unbounded in
+    #                                       memory or time, an unsafe name, an unverified file)
+    mode: str = "inproc"                  # "inproc" (main(argv)), "process", "mpi"
+    ranks: int = 1
+    sender: Callable | None = None        # process mode: sender(proc, D) while it runs
+    fault: bool = False                   # run through tests/hostile/_faults.py (full disk)
+    env: dict = field(default_factory=dict)  # process mode: more environment ({dir} = D)
+    timeout: float = 60.0
+
+    def write_inputs(self, d: Path, donors) -> None:
+        (d / "work").mkdir(parents=True, exist_ok=True)
+        if isinstance(self.scene, dict):
+            (d / "scene.toml").write_text(dumps(self.scene))
+        elif isinstance(self.scene, str):
+            (d / "scene.toml").write_text(self.scene)
+        elif isinstance(self.scene, bytes):
+            (d / "scene.toml").write_bytes(self.scene)
+        for name, content in self.files.items():
+            target = d / name
+            if isinstance(content, Path):
+                shutil.copyfile(content, target)
+            elif isinstance(content, bytes):
+                target.write_bytes(content)
+            else:
+                target.write_text(content)
+        if self.prepare is not None:
+            self.prepare(d, donors)
+
+    def args(self, d: Path) -> list[str]:
+        return [a.format(scene=d / "scene.toml", out=d / "out", dir=d) for a in self.argv]
+
+
+# ----------------------------------------------------------------------------- helpers
+
+
+def square(*changes, mesh: str = "square.msh") -> tuple[dict, dict]:
+    """(scene, files) of SQUARE on the mesh file ``mesh`` (from tests/hostile/meshes)."""
+    scene = edit(SQUARE, ("mesh.file", mesh), *changes)
+    return scene, {mesh: MESHES / mesh}
+
+
+def square_case(id: str, expect: int, key: str, *changes, mesh: str = "square.msh",
+                **kw) -> Case:
+    """A case of SQUARE on the mesh file ``mesh`` with ``changes``."""
+    scene, files = square(*changes, mesh=mesh)
+    return Case(id, expect, key, scene, files=files, **kw)
+
+
+def mesh_case(id: str, key: str, mesh: str, **kw) -> Case:
+    return square_case(id, 2, key, mesh=mesh, stage="mesh", **kw)
+
+
+def copy_donor(name: str = "base"):
+    """prepare: D/out is a copy of the donor run ``name`` (a finished run's directory)."""
+    def prepare(d: Path, donors) -> None:
+        shutil.copytree(donors.get(name), d / "out")
+    return prepare
+
+
+def then(*steps):
+    def prepare(d: Path, donors) -> None:
+        for s in steps:
+            s(d, donors)
+    return prepare
+
+
+def rewrite_checkpoint(change: Callable[[dict], dict]):
+    """prepare step: D/out/checkpoint.npz rewritten with ``change(arrays)``."""
+    def step(d: Path, donors) -> None:
+        path = d / "out/checkpoint.npz"
+        with np.load(path) as f:
+            arrays = {k: f[k] for k in f.files}
+        np.savez(path, **change(arrays))
+    return step
+
+
+def write(rel: str, content: bytes):
+    def step(d: Path, donors) -> None:
+        (d / rel).write_bytes(content)
+    return step
+
+
+def summary_unchanged(d: Path, out: str, err: str) -> str:
+    """check: the restart refused must leave the donor's summary.json as it was."""
+    now = (d / "out/summary.json").read_bytes()
+    was = (d / "summary.before").read_bytes()
+    return "" if now == was else "summary.json was overwritten"
+
+
+def keep_summary(step):
+    """prepare: ``step``, then remember summary.json (for :func:`summary_unchanged`)."""
+    def prepare(d: Path, donors) -> None:
+        step(d, donors)
+        shutil.copyfile(d / "out/summary.json", d / "summary.before")
+    return prepare
+
+
+def checkpoint_case(id: str, *steps, key: str = "checkpoint.npz", donor: str = "base",
+                    **kw) -> Case:
+    prep = keep_summary(then(copy_donor(donor), *steps))
+    return Case(id, 2, key, None, argv=("run", "--restart", "{out}"), prepare=prep,
+                check=summary_unchanged, stage="mesh", **kw)
+
+
+def readonly_dir(d: Path, donors) -> None:
+    """prepare: D/ro a directory this process cannot write into: mode 0555, or for root (who
+    writes anyway) a read-only tmpfs; skipped where neither works."""
+    ro = d / "ro"
+    ro.mkdir()
+    if os.geteuid() != 0:
+        ro.chmod(0o555)
+        return
+    proc = subprocess.run(["mount", "-t", "tmpfs", "-o", "ro,size=64k", "tmpfs", str(ro)],
+                          capture_output=True)
+    if proc.returncode != 0:
+        raise Skip("no read-only directory: not root-free and cannot mount")
+
+
+def small_disk(d: Path, donors) -> None:
+    """prepare: D/out a 64 KiB tmpfs, which the run's writes fill up for real (root only)."""
+    (d / "out").mkdir()
+    proc = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(d / "out")],
+                          capture_output=True) if os.geteuid() == 0 else None
+    if proc is None or proc.returncode != 0:
+        raise Skip("cannot mount a small file system here (needs root)")
+
+
+def unmount(d: Path) -> None:
+    for place in (d / "ro", d / "out"):
+        if os.path.ismount(place):
+            subprocess.run(["umount", str(place)], check=False)
+
+
+class Skip(Exception):
+    """This machine cannot lay the case out (e.g. no way to make a read-only directory)."""
+
+
+def fifo(rel: str):
+    def step(d: Path, donors) -> None:
+        os.mkfifo(d / rel)
+    return step
+
+
+def mkdir(rel: str):
+    def step(d: Path, donors) -> None:
+        (d / rel).mkdir(parents=True)
+    return step
+
+
+def in_summary(word: str):
+    def check(d: Path, out: str, err: str) -> str:
+        s = json.loads((d / "out/summary.json").read_text())
+        text = json.dumps(s.get("warnings", []))
+        if word in text and word in out:
+            return ""
+        return f"no {word!r} warning in the log and summary.json"
+    return check
+
+
+def full_disk_kept(d: Path, out: str, err: str) -> str:
+    """check: after the disk filled up, no temporary file is left and summary.json and the
+    checkpoint still hold the last good (first) step."""
+    o = d / "out"
+    left = [p.name for p in o.iterdir() if p.name.startswith(".")]
+    if left:
+        return f"temporary files left: {left}"
+    s = json.loads((o / "summary.json").read_text())
+    with np.load(o / "checkpoint.npz") as f:
+        step = int(f["step"])
+    if len(s["steps"]) != 1 or step != 1:
+        return f"summary.json has {len(s['steps'])} steps, the checkpoint step {step} (want 1, 1)"
+    return ""
+
+
+def full_disk_consistent(d: Path, out: str, err: str) -> str:
+    """check: on a disk that filled up no temporary file is left, and summary.json and the
+    checkpoint are whole and hold the same step, or the checkpoint one more (summary.json
+    is written last in a step)."""
+    o = d / "out"
+    left = [p.name for p in o.rglob(".*")]
+    if left:
+        return f"temporary files left: {left}"
+    steps = len(json.loads((o / "summary.json").read_text())["steps"])
+    with np.load(o / "checkpoint.npz") as f:
+        step = int(f["step"])
+    if steps < 1 or step - steps not in (0, 1):
+        return f"summary.json has {steps} steps, the checkpoint step {step}"
+    return ""
+
+
+def signal_after(sig: signal.Signals, seconds: float, marker: str = "effect:"):
+    """sender: ``sig`` once ``marker`` was printed (start-up is under way) plus ``seconds``."""
+    def send(proc: subprocess.Popen, d: Path) -> None:
+        deadline = time.time() + 60
+        seen = ""
+        while marker not in seen and time.time() < deadline and proc.poll() is None:
+            line = proc.stdout.readline()
+            seen += line
+            if not line:
+                time.sleep(0.02)
+        time.sleep(seconds)
+        if proc.poll() is None:
+            proc.send_signal(sig)
+        proc.seen = seen
+    return send
+
+
+# --------------------------------------------------------------------------- the cases
+
+CONTACT = "contacts[0]"
+COULOMB_LAW = (f"{CONTACT}.friction.law", "coulomb")
+CURVE = ("curves", {"c": {"t": [0.0, 1.0, 2.0], "value": [0.0, 1.0, 1.0]}})
+PENALTY = (f"{CONTACT}.enforcement", {"type": "penalty"})
+
+CASES: list[Case] = []
+
+
+def add(*cases: Case) -> None:
+    CASES.extend(cases)
+
+
+def value(id: str, key: str, *changes, hazard: str = "wrong", stage: str = "scene",
+          expect: int = 2) -> Case:
+    """A scene of BASE with ``changes`` whose message must name ``key``."""
+    return Case(id, expect, key, base(*changes), hazard=hazard, stage=stage)
+
+
+# -- floats that are not finite (TOML has nan and inf) ------------------------------------
+add(
+    value("E_nan", "bodies[0].material.E", ("bodies[0].material.E", NAN)),
+    value("E_inf", "bodies[0].material.E", ("bodies[0].material.E", INF)),
+    value("E_minus_inf", "bodies[1].material.E", ("bodies[1].material.E", -INF)),
+    value("nu_nan", "bodies[0].material.nu", ("bodies[0].material.nu", NAN)),
+    value("nu_minus_inf", "bodies[0].material.nu", ("bodies[0].material.nu", -INF)),
+    value("pressure_nan", "pressures[0].value", ("pressures[0].value", NAN)),
+    value("pressure_inf", "pressures[0].value", ("pressures[0].value", INF)),
+    value("pressure_minus_inf", "pressures[0].value", ("pressures[0].value", -INF)),
+    value("traction_nan", "tractions[0].value[0]",
+          ("tractions", [{"boundary": "block_right", "value": [NAN, 0.0]}])),
+    value("traction_inf", "tractions[0].value[1]",
+          ("tractions", [{"boundary": "block_right", "value": [0.0, INF]}])),
+    value("dirichlet_x_nan", "dirichlet[0].x", ("dirichlet[0].x", NAN)),
+    value("dirichlet_y_inf", "dirichlet[0].y", ("dirichlet[0].y", INF)),
+    value("point_nan", "dirichlet[2].point[0]",
+          ("dirichlet[+]", {"point": [NAN, 0.0], "body": "slab", "x": 0.0})),
+    value("motion_center_inf", "dirichlet[1].motion.center[0]",
+          ("dirichlet[1]", {"boundary": "block_left", "motion": {"center": [INF, 0.0]}})),
+    value("motion_translation_nan", "dirichlet[1].motion.translation[1]",
+          ("dirichlet[1]", {"boundary": "block_left", "motion": {"translation": [0.0, NAN]}})),
+    value("motion_rotation_inf", "dirichlet[1].motion.rotation",
+          ("dirichlet[1]", {"boundary": "block_left", "motion": {"rotation": INF}})),
+    value("curve_t_nan", "curves.c.t[1]", CURVE, ("curves.c.t", [0.0, NAN, 2.0]),
+          ("pressures[0].curve", "c")),
+    value("curve_t_inf", "curves.c.t[2]", CURVE, ("curves.c.t", [0.0, 1.0, INF]),
+          ("pressures[0].curve", "c")),
+    value("curve_value_inf", "curves.c.value[1]", CURVE, ("curves.c.value", [0.0, INF, 1.0]),
+          ("pressures[0].curve", "c")),
+    value("curve_value_nan_unused", "curves.c.value[2]", CURVE,
+          ("curves.c.value", [0.0, 1.0, NAN]), hazard="ignored"),
+    value("epsilon_inf", f"{CONTACT}.enforcement.epsilon",
+          (f"{CONTACT}.enforcement", {"type": "penalty", "epsilon": INF})),
+    value("epsilon_nan", f"{CONTACT}.enforcement.epsilon",
+          (f"{CONTACT}.enforcement", {"epsilon": NAN})),
+    value("tolerance_inf", f"{CONTACT}.enforcement.tolerance",
+          (f"{CONTACT}.enforcement", {"tolerance": INF})),
+    value("tolerance_nan", f"{CONTACT}.enforcement.tolerance",
+          (f"{CONTACT}.enforcement", {"tolerance": NAN})),
+    value("mu_inf", f"{CONTACT}.friction.mu", (f"{CONTACT}.friction.mu", INF), COULOMB_LAW),
+    value("mu_nan", f"{CONTACT}.friction.mu", (f"{CONTACT}.friction.mu", NAN), COULOMB_LAW),
+    value("search_radius_nan", f"{CONTACT}.search_radius", (f"{CONTACT}.search_radius", NAN)),
+    value("search_radius_inf", f"{CONTACT}.search_radius", (f"{CONTACT}.search_radius", INF),
+          hazard="unchecked"),
+    value("steps_end_nan", "steps.end", ("steps.end", NAN)),
+    value("steps_end_inf", "steps.end", ("steps.end", INF)),
+    value("steps_times_nan", "steps.times[0]", ("steps", {"times": [NAN]})),
+    value("steps_times_inf", "steps.times[1]", ("steps", {"times": [0.5, INF]})),
+    value("min_increment_nan", "steps.min_increment", ("steps.min_increment", NAN)),
+    value("min_increment_inf", "steps.min_increment", ("steps.min_increment", INF),
+          hazard="ignored"),
+    value("atol_inf", "solver.atol", ("solver", {"atol": INF})),
+    value("atol_nan", "solver.atol", ("solver", {"atol": NAN})),
+    value("rtol_inf", "solver.rtol", ("solver", {"rtol": INF}), hazard="ignored"),
+    value("rtol_nan", "solver.rtol", ("solver", {"rtol": NAN})),
+    value("petsc_value_nan", "-snes_linesearch_damping",
+          ("solver", {"petsc": {"-snes_linesearch_damping": NAN}})),
+    value("mesh_param_nan", "mesh.params.slab_nx", ("mesh.params.slab_nx", NAN)),
+)
+
+# -- numbers out of range; upper bounds where a value drives memory or time --------------
+add(
+    value("tolerance_one", f"{CONTACT}.enforcement.tolerance",
+          (f"{CONTACT}.enforcement", {"tolerance": 1.0})),
+    value("tolerance_below_roundoff", f"{CONTACT}.enforcement.tolerance",
+          (f"{CONTACT}.enforcement", {"tolerance": 1e-300}), hazard="unchecked"),
+    value("search_radius_zero", f"{CONTACT}.search_radius", (f"{CONTACT}.search_radius", 0.0),
+          hazard="ignored"),
+    value("search_radius_negative", f"{CONTACT}.search_radius",
+          (f"{CONTACT}.search_radius", -1.0)),
+    value("n_gauss_huge", f"{CONTACT}.n_gauss", (f"{CONTACT}.n_gauss", 10 ** 9),
+          hazard="unchecked"),
+    value("n_gauss_max_int", f"{CONTACT}.n_gauss", (f"{CONTACT}.n_gauss", 2 ** 63 - 1),
+          hazard="unchecked"),
+    value("max_augmentations_negative", f"{CONTACT}.enforcement.max_augmentations",
+          (f"{CONTACT}.enforcement", {"max_augmentations": -1})),
+    value("max_augmentations_huge", f"{CONTACT}.enforcement.max_augmentations",
+          (f"{CONTACT}.enforcement", {"max_augmentations": 10 ** 9}), hazard="unchecked"),
+    value("steps_count_huge", "steps.count", ("steps.count", 10 ** 12), hazard="unchecked"),
+    value("steps_count_max_int", "steps.count", ("steps.count", 2 ** 63 - 1), hazard="unchecked"),
+    value("steps_times_too_many", "steps.times",
+          ("steps", {"times": [(k + 1) / 100001 for k in range(100001)]}), hazard="unchecked"),
+    value("max_cuts_huge", "steps.max_cuts", ("steps.max_cuts", 10 ** 9), hazard="unchecked"),
+    value("min_increment_below_roundoff", "steps.min_increment",
+          ("steps.min_increment", 1e-300), ("steps.max_cuts", 50), hazard="unchecked"),
+    value("rtol_above_one", "solver.rtol", ("solver", {"rtol": 2.0}), hazard="ignored"),
+    value("max_iterations_huge", "solver.max_iterations", ("solver", {"max_iterations": 10 ** 9}),
+          hazard="unchecked"),
+    value("quadrature_degree_huge", "solver.quadrature_degree",
+          ("solver", {"quadrature_degree": 1000}), hazard="unchecked"),
+    value("quadrature_degree_40", "solver.quadrature_degree",
+          ("solver", {"quadrature_degree": 40}), hazard="unchecked"),
+    value("atol_huge", "solver.atol", ("solver", {"atol": 1e30}), stage="run"),
+    value("atol_below_roundoff", "solver.atol", ("solver", {"atol": 1e-300}), stage="run"),
+)
+
+# -- mesh generator parameters: cell counts estimated before meshing; gmsh's limits -------
+GEN = [
+    ("block_huge", "block", {"nx": 10 ** 6, "ny": 10 ** 6}),
+    ("block_width_tiny", "block", {"width": 1e-300}),
+    ("block_far_away", "block", {"x0": 1e300}),
+    ("block_width_nan", "block", {"width": NAN}),
+    ("block_height_inf", "block", {"height": INF}),
+    ("block_on_slab_huge", "block_on_slab", {"block_nx": 10 ** 7}),
+    ("block_on_slab_max_int", "block_on_slab", {"slab_nx": 2 ** 62}),
+    ("hertz_tiny_elements", "hertz", {"h_contact": 1e-6}),
+    ("hertz_tiny_disk", "hertz", {"R": 1e-3}),
+    ("hertz_elements_bigger_than_bodies", "hertz", {"h_contact": 2.0, "h_far": 3.0}),
+    ("hertz_h_nan", "hertz", {"h_contact": NAN}),
+    ("half_rings_huge", "half_rings", {"fixed_nc": 10 ** 7}),
+    ("ironing_huge", "ironing", {"nx": 10 ** 5, "ny": 10 ** 4}),
+    ("patch_test_huge", "patch_test", {"lower_nx": 4 * 10 ** 6}),
+    ("stacked_blocks_huge", "stacked_blocks", {"lower_nx": 10 ** 7}),
+    ("stacked_blocks_gap_huge", "stacked_blocks", {"gap": 1e300}),
+]
+add(*(Case(f"gen_{id}", 2, "mesh.params", edit(BLOCK, ("mesh", {"generator": g, "params": p})))
+      for id, g, p in GEN))
+
+# -- PETSc options: unknown, rejected, unused, writing files, replacing the convergence rule
+PETSC = [
+    ("unknown_option", "-snes_foo", {"-snes_foo": 1}, "ignored"),
+    ("unknown_type", "-ksp_type", {"-ksp_type": "nonsense"}, "wrong"),
+    ("unknown_pc", "-pc_type", {"-pc_type": "bogus"}, "wrong"),
+    ("not_an_integer", "-snes_max_it", {"-snes_max_it": "abc"}, "wrong"),
+    ("unknown_line_search", "-snes_linesearch_type", {"-snes_linesearch_type": "xyz"}, "wrong"),
+    ("never_read", "-mat_mumps_icntl_14", {"-mat_mumps_icntl_14": 50}, "ignored"),
+    ("view_never_read", "-snes_view", {"-snes_view": True}, "ignored"),
+    ("viewer_file_outside", "-snes_monitor", {"-snes_monitor": "ascii:../outside.txt"}, "wrong"),
+    ("viewer_binary_file", "-ksp_view_mat", {"-ksp_view_mat": "binary:mat.bin"}, "wrong"),
+    ("x_window", "-snes_monitor_lg_residualnorm", {"-snes_monitor_lg_residualnorm": True},
+     "ignored"),
+    ("skip_convergence_test", "-snes_convergence_test", {"-snes_convergence_test": "skip"},
+     "wrong"),
+    ("ksponly", "-snes_type", {"-snes_type": "ksponly"}, "wrong"),
+    ("key_with_space", "-ksp_type gmres", {"-ksp_type gmres": True}, "ignored"),
+]
+add(*(value(f"petsc_{id}", key, ("solver", {"petsc": opts}), hazard=hz)
+      for id, key, opts, hz in PETSC))
+
+# -- groups: empty lists, repeats, two bodies on one region, conflicting supports ----------
+add(
+    value("dirichlet_boundary_empty", "dirichlet[0].boundary", ("dirichlet[0].boundary", [])),
+    value("pressure_boundary_empty", "pressures[0].boundary", ("pressures[0].boundary", [])),
+    value("traction_boundary_empty", "tractions[0].boundary",
+          ("tractions", [{"boundary": [], "value": [0.1, 0.0]}])),
+    value("slave_empty", f"{CONTACT}.slave", (f"{CONTACT}.slave", [])),
+    value("master_empty", f"{CONTACT}.master", (f"{CONTACT}.master", [])),
+    value("pressure_boundary_repeated", "pressures[0].boundary",
+          ("pressures[0].boundary", ["block_top", "block_top"])),
+    value("slave_repeated", f"{CONTACT}.slave",
+          (f"{CONTACT}.slave", ["block_bottom", "block_bottom"]), hazard="ignored"),
+    value("dirichlet_boundary_repeated", "dirichlet[0].boundary",
+          ("dirichlet[0].boundary", ["slab_bottom", "slab_bottom"]), hazard="ignored"),
+    value("two_bodies_one_region", "bodies[1].region", ("bodies[1].region", "block")),
+    value("third_body_on_a_region", "bodies[2].region",
+          ("bodies[+]", {"name": "again", "region": "slab",
+                         "material": {"model": "svk", "E": 10.0, "nu": 0.2}})),
+    value("dirichlet_conflict", "dirichlet[2].y",
+          ("dirichlet[+]", {"boundary": "slab_bottom", "y": 0.1}), hazard="ignored"),
+    value("no_support_in_y", "no entry prescribes y", ("dirichlet[0].y", DELETE)),
+    value("no_supports", "no entry prescribes x or y", ("dirichlet", [])),
+    value("region_without_body", "'slab'", ("bodies", BASE["bodies"][:1]),
+          ("dirichlet", [{"boundary": "block_left", "x": 0.0},
+                         {"boundary": "block_top", "y": 0.0}]), stage="mesh"),
+    value("group_name_empty", "pressures[0].boundary", ("pressures[0].boundary", "")),
+)
+
+# -- names that become file names ---------------------------------------------------------
+NAMES = [("traversal", "../../x"), ("slash", "sub/x"), ("dot_dot", ".."), ("empty", ""),
+         ("too_long", "a" * 300), ("nul", "a\u0000b"), ("newline", "a\nb"),
+         ("leading_dash", "-rf")]
+add(*(value(f"pair_name_{id}", f"{CONTACT}.name", (f"{CONTACT}.name", name),
+            hazard="wrong" if id == "traversal" else "unchecked") for id, name in NAMES))
+add(
+    value("support_name_traversal", "dirichlet[0].name", ("dirichlet[0].name", "../x"),
+          hazard="unchecked"),
+    value("support_name_too_long", "dirichlet[0].name", ("dirichlet[0].name", "s" * 300),
+          hazard="unchecked"),
+)
+
+# -- values that would be ignored ---------------------------------------------------------
+add(
+    value("body_with_boundary", "dirichlet[0].body", ("dirichlet[0].body", "slab"),
+          hazard="ignored"),
+    value("end_with_times", "steps.end", ("steps", {"times": [0.5, 1.0], "end": 5.0}),
+          hazard="ignored"),
+    square_case("params_with_file", 2, "mesh.params", ("mesh.params", {"nx": 8}),
+                hazard="ignored"),
+    square_case("cell_with_file", 2, "mesh.cell", ("mesh.cell", "triangle"), hazard="ignored"),
+)
+
+# -- the scene file itself ----------------------------------------------------------------
+BASE_TEXT = dumps(BASE)
+add(
+    Case("scene_is_a_directory", 2, "sdir", None, argv=("run", "{dir}/sdir", "--out", "{out}"),
+         prepare=mkdir("sdir")),
+    Case("scene_dev_zero", 2, "/dev/zero", None, argv=("run", "/dev/zero", "--out", "{out}")),
+    Case("scene_dev_null", 2, "/dev/null", None, argv=("run", "/dev/null", "--out", "{out}")),
+    Case("scene_fifo", 2, "fifo.toml", None, argv=("run", "{dir}/fifo.toml", "--out", "{out}"),
+         prepare=fifo("fifo.toml")),
+    Case("scene_latin1", 2, "scene.toml", BASE_TEXT.replace("block on slab", "caf\xe9")
+         .encode("latin-1")),
+    Case("scene_utf16", 2, "scene.toml", BASE_TEXT.encode("utf-16")),
+    Case("scene_binary", 2, "scene.toml", bytes(range(256)) * 4),
+    Case("scene_too_large", 2, "scene.toml", BASE_TEXT + "#" + "x" * (20 << 20) + "\n",
+         hazard="unchecked"),
+    Case("scene_missing", 2, "nowhere.toml", None,
+         argv=("run", "{dir}/nowhere.toml", "--out", "{out}")),
+)
+
+# -- --out: a file, under a file, unwritable, read-only -----------------------------------
+add(
+    Case("out_is_a_file", 2, "--out", base(), prepare=write("out", b"not a directory")),
+    Case("out_under_a_file", 2, "--out", base(), argv=("run", "{scene}", "--out", "{dir}/f/out"),
+         prepare=write("f", b"a file")),
+    Case("out_dev_null", 2, "--out", base(), argv=("run", "{scene}", "--out", "/dev/null")),
+    Case("out_unwritable", 2, "--out", base(),
+         argv=("run", "{scene}", "--out", "/proc/self/fm_out")),
+    Case("out_read_only", 2, "--out", base(), argv=("run", "{scene}", "--out", "{dir}/ro/out"),
+         prepare=readonly_dir),
+)
+
+# -- restarts and checkpoints -------------------------------------------------------------
+def _truncate(d: Path, donors) -> None:
+    p = d / "out/checkpoint.npz"
+    p.write_bytes(p.read_bytes()[: p.stat().st_size // 2])
+
+
+def _other_run(d: Path, donors) -> None:
+    shutil.copyfile(donors.get("base") / "checkpoint.npz", d / "out/checkpoint.npz")
+
+
+def _no_fingerprint(a: dict) -> dict:
+    return {k: v for k, v in a.items() if not k.startswith("fingerprint")}
+
+
+def _nan_u(a: dict) -> dict:
+    a["u"] = a["u"].copy()
+    a["u"].flat[3] = np.nan
+    return a
+
+
+def _ckpt_dir(d: Path, donors) -> None:
+    p = d / "out/checkpoint.npz"
+    p.unlink()
+    p.mkdir()
+
+
+def _run_then_move_a_node(d: Path, donors) -> None:
+    """A run on square.msh in D/out, then the mesh file changes (one node moved)."""
+    donors.run_in(d, "run", str(d / "scene.toml"), "--out", str(d / "out"))
+    mesh = d / "square.msh"
+    text = mesh.read_text()
+    assert "\n0.5 0 0\n" in text
+    mesh.write_text(text.replace("\n0.5 0 0\n", "\n0.45 0 0\n", 1))
+    shutil.copyfile(d / "out/summary.json", d / "summary.before")
+
+
+add(
+    Case("restart_with_a_scene", 2, "--restart", base(),
+         argv=("run", "{scene}", "--restart", "{out}"), prepare=copy_donor(), hazard="ignored"),
+    Case("restart_with_out", 2, "--out", None,
+         argv=("run", "--restart", "{out}", "--out", "{dir}/other"), prepare=copy_donor(),
+         hazard="ignored"),
+    Case("restart_missing_dir", 2, "nothing", None, argv=("run", "--restart", "{dir}/nothing")),
+    checkpoint_case("restart_no_scene_json", lambda d, _: (d / "out/scene.json").unlink(),
+                    key="scene.json"),
+    checkpoint_case("restart_scene_json_corrupt", write("out/scene.json", b"{\"mesh\": "),
+                    key="scene.json"),
+    checkpoint_case("restart_scene_json_latin1", write("out/scene.json", b"{\"title\": \"\xe9\"}"),
+                    key="scene.json"),
+    checkpoint_case("checkpoint_truncated", _truncate),
+    checkpoint_case("checkpoint_garbage", write("out/checkpoint.npz", bytes(range(256)) * 16)),
+    checkpoint_case("checkpoint_empty", write("out/checkpoint.npz", b"")),
+    checkpoint_case("checkpoint_is_a_directory", _ckpt_dir),
+    checkpoint_case("checkpoint_missing_arrays", rewrite_checkpoint(lambda a: {"u": a["u"]})),
+    checkpoint_case("checkpoint_nan", rewrite_checkpoint(_nan_u)),
+    checkpoint_case("checkpoint_wrong_shape",
+                    rewrite_checkpoint(lambda a: {**a, "u": a["u"][:-1]})),
+    checkpoint_case("checkpoint_steps_not_json",
+                    rewrite_checkpoint(lambda a: {**a, "steps": np.array("[{")})),
+    checkpoint_case("checkpoint_without_fingerprint", rewrite_checkpoint(_no_fingerprint),
+                    hazard="unchecked"),
+    checkpoint_case("checkpoint_of_another_run", _other_run, donor="base_p05"),
+    square_case("checkpoint_of_another_mesh", 2, "mesh", argv=("run", "--restart", "{out}"),
+                prepare=_run_then_move_a_node, check=summary_unchanged, stage="mesh"),
+    Case("restart_control", 0, "done", None, argv=("run", "--restart", "{out}"),
+         prepare=copy_donor(), stage="run"),
+)
+
+# -- mesh files ---------------------------------------------------------------------------
+add(
+    mesh_case("mesh_mixed_cells", "mixed.msh", "mixed.msh"),
+    mesh_case("mesh_second_order_triangles", "tri6.msh", "tri6.msh"),
+    mesh_case("mesh_second_order_quads", "quad9.msh", "quad9.msh"),
+    mesh_case("mesh_serendipity_quads", "quad8.msh", "quad8.msh"),
+    mesh_case("mesh_no_2d_cells", "lines_only.msh", "lines_only.msh"),
+    mesh_case("mesh_points_only", "points_only.msh", "points_only.msh"),
+    mesh_case("mesh_empty_file", "empty.msh", "empty.msh"),
+    mesh_case("mesh_garbage", "garbage.msh", "garbage.msh"),
+    mesh_case("mesh_truncated", "truncated.msh", "truncated.msh"),
+    mesh_case("mesh_overlapping_groups", "overlap.msh", "overlap.msh"),
+    mesh_case("mesh_zero_area_cell", "zero_area.msh", "zero_area.msh"),
+    Case("mesh_is_a_directory", 2, "mdir", square()[0] | {"mesh": {"file": "mdir"}},
+         prepare=mkdir("mdir")),
+    Case("mesh_dev_zero", 2, "/dev/zero", square()[0] | {"mesh": {"file": "/dev/zero"}}),
+    Case("mesh_fifo", 2, "fifo.msh", square()[0] | {"mesh": {"file": "fifo.msh"}},
+         prepare=fifo("fifo.msh")),
+    square_case("mesh_control", 0, "done", stage="run"),
+)
+
+# -- physics guards -----------------------------------------------------------------------
+SVK = edit(BLOCK, ("bodies[0].material.model", "svk"), ("dirichlet", [
+    {"boundary": "bottom", "y": 0.0}, {"boundary": "left", "x": 0.0}]),
+    ("pressures[0]", {"boundary": "top", "value": 300.0, "follower": False}),
+    ("steps", {"count": 1, "max_cuts": 0}))
+#: the top pushed 1.5 down on a block 1 high: from t = 2/3 on every state is inverted
+SQUASHED = edit(SVK, ("pressures", []), ("dirichlet[+]", {"boundary": "top", "y": -1.5}),
+                ("steps.max_cuts", 3))
+add(
+    # past SVK's limit load Newton finds the inverted branch (J = -1.08 in every cell)
+    Case("svk_inverted", 1, "inverts", SVK, stage="run"),
+    Case("svk_squashed", 1, "inverts", SQUASHED, stage="run"),
+    Case("penalty_penetration", 0, "penetration",
+         base((f"{CONTACT}.enforcement", {"type": "penalty", "epsilon": 10.0})),
+         check=in_summary("penetration"), stage="run", hazard="ignored"),
+    Case("factorization_fails", 1, "factorization",
+         base(("steps.max_cuts", 1), ("solver", {"petsc": {
+             "-pc_factor_mat_solver_type": "petsc", "-pc_factor_zeropivot": 1e300,
+             "-ksp_error_if_not_converged": True}})), stage="run"),
+)
+
+def signal_when(sig: signal.Signals, pattern: str):
+    """sender: ``sig`` as soon as a file matching ``pattern`` appears under D (e.g. the C
+    file FFCx writes before compiling it)."""
+    def send(proc: subprocess.Popen, d: Path) -> None:
+        deadline = time.time() + 60
+        while not any(d.glob(pattern)) and time.time() < deadline and proc.poll() is None:
+            time.sleep(0.005)
+        if proc.poll() is None:
+            proc.send_signal(sig)
+    return send
+
+
+def rerun_succeeds(d: Path, out: str, err: str) -> str:
+    """check: no C file without its module is left in the JIT cache, and the same scene,
+    run again with the same cache, converges (an interrupted
+    compilation left no half-written entry that would time the next one out)."""
+    cache = d / "jit-cache/fenics"
+    stale = [c.name for c in cache.glob("*.c") if not c.with_suffix(".c.cached").exists()]
+    if stale:
+        return f"C files without their module left in the JIT cache: {stale}"
+    env = {**os.environ, "XDG_CACHE_HOME": str(d / "jit-cache")}
+    proc = subprocess.run([sys.executable, "-m", "fenicsx_mortar", "run", str(d / "scene.toml"),
+                           "--out", str(d / "out")], cwd=d / "work", env=env, text=True,
+                          capture_output=True, timeout=300)
+    return "" if proc.returncode == 0 else f"the rerun failed: {proc.stderr[-1000:]}"
+
+
+# -- signals during start-up, a full disk, and MPI ----------------------------------------
+SLOW_MESH = edit(BLOCK, ("mesh.params", {"nx": 700, "ny": 700}))
+add(
+    # a fresh JIT cache: SIGINT as soon as FFCx writes the first form's C file
+    Case("sigint_while_compiling", 1, "SIGINT while compiling", edit(BLOCK, (
+        "bodies[0].material.model", "svk")), mode="process", env={
+        "XDG_CACHE_HOME": "{dir}/jit-cache"},
+        sender=signal_when(signal.SIGINT, "jit-cache/fenics/libffcx_forms_*.c"),
+        check=rerun_succeeds, stage="run", timeout=120),
+    Case("sigterm_while_meshing", 1, "SIGTERM", SLOW_MESH, mode="process",
+         sender=signal_after(signal.SIGTERM, 1.0), stage="run"),
+    Case("sigint_while_meshing", 1, "SIGINT", SLOW_MESH, mode="process",
+         sender=signal_after(signal.SIGINT, 1.0), stage="run"),
+    Case("disk_really_full", 1, "No space left", base(
+        ("steps.count", 60), ("output", {"xdmf": False, "plots": False})), mode="process",
+        prepare=small_disk, check=full_disk_consistent, stage="run"),
+    Case("disk_full", 1, "No space left", base(("steps.count", 3),
+                                               ("output", {"xdmf": False, "plots": False})),
+         mode="process", fault=True, check=full_disk_kept, stage="run"),
+)
+add(
+    Case("mpi_out_is_a_file", 2, "--out", base(), prepare=write("out", b"x"), mode="mpi",
+         ranks=2),
+    Case("mpi_corrupt_checkpoint", 2, "checkpoint.npz", None, argv=("run", "--restart", "{out}"),
+         prepare=keep_summary(then(copy_donor(), _truncate)), check=summary_unchanged,
+         mode="mpi", ranks=2, stage="mesh"),
+    Case("mpi_disk_full", 1, "No space left", base(("steps.count", 3),
+                                                   ("output", {"xdmf": False, "plots": False})),
+         mode="mpi", ranks=2, fault=True, check=full_disk_kept, stage="run"),
+    Case("mpi_long_pair_name", 2, f"{CONTACT}.name", base((f"{CONTACT}.name", "p" * 300)),
+         mode="mpi", ranks=2),
+)
+
+#: donor runs the restart cases copy: name -> scene
+DONORS = {"base": base(("output", {"xdmf": False})),
+          "base_p05": base(("pressures[0].value", 0.5), ("output", {"xdmf": False}))}
+
+assert len({c.id for c in CASES}) == len(CASES), "duplicate case ids"
