@@ -68,6 +68,8 @@ def edit(doc: dict, *changes) -> dict:
         if last == "[+]":
             node.append(value)
         elif last.startswith("["):
+            if not isinstance(node, list):   # an index into a table made on the way
+                raise TypeError(f"{path}: not a list")
             node[int(last[1:-1])] = value
         elif value is DELETE:
             del node[last]
