@@ -67,6 +67,9 @@ residual = ufl.inner(P, ufl.grad(v)) * dx - ufl.dot(traction, v) * ds(DISK_TOP)
 # supports: block bottom u_y = 0; u_x = 0 at (0, −1) on the block and at (0, 1), (0, 0.5) on
 # the disk (two points on the axis: a circle on a frictionless support could spin)
 bottom = facet_tags.indices[facet_tags.values == BLOCK_BOTTOM]
+# (DOLFINx >= 0.9: locate_dofs_topological needs the entity-to-cell connectivity made first)
+msh.topology.create_connectivity(1, 2)
+msh.topology.create_connectivity(0, 2)
 bcs = [fem.dirichletbc(PETSc.ScalarType(0.0),
                        fem.locate_dofs_topological(V.sub(1), 1, bottom), V.sub(1))]
 for px, py in ((0.0, -1.0), (0.0, 1.0), (0.0, 0.5)):

@@ -10,7 +10,7 @@
 # half-built (the stamp file is written only after every step succeeded), then runs CMD
 # inside it (as root, in DIR) with DIR (default: this repository) bind-mounted at the same
 # path. /proc, /sys, /dev (with /dev/pts, /dev/shm: Open MPI's shared memory) and the host's
-# /tmp are mounted too.
+# /tmp are mounted too, and the host's CA bundle (read-only) over the root's.
 #
 # The mounts are made in a private mount namespace (unshare -m), so they are never seen by
 # the host and vanish with the command even if it is killed; a trap unmounts them as well.
@@ -152,6 +152,14 @@ mnt --rbind /dev "$ROOT/dev"          # with /dev/pts and /dev/shm (Open MPI's s
 mountpoint -q "$ROOT/dev/shm" || mnt -t tmpfs -o mode=1777 shm "$ROOT/dev/shm"
 mnt -t sysfs sysfs "$ROOT/sys"        # hwloc (Open MPI) reads the topology from /sys
 mnt --bind /tmp "$ROOT/tmp"           # the host's /tmp: scripts and test output stay visible
+# The host's CA bundle, read-only over the root's: where TLS goes through a proxy with its
+# own certificate authority, pip (scripts/setup.sh installs ruff) and git get through from
+# inside the root as they do on the host.
+crt=/etc/ssl/certs/ca-certificates.crt
+if [ -f "$crt" ] && [ -f "$ROOT$crt" ]; then
+  mnt --bind "$crt" "$ROOT$crt"
+  mount -o remount,bind,ro "$ROOT$crt"
+fi
 if [ -n "$REPO" ]; then
   mkdir -p "$ROOT$REPO"
   mnt --bind "$REPO" "$ROOT$REPO"
