@@ -142,8 +142,9 @@ def fingerprint(path: str, steps: int | None, comm) -> dict:
     fp = {"path": str(path), "title": scene.title, "steps_limit": steps, "steps": []}
 
     def on_step(record, state):
-        pairs = getattr(state, "pairs", None) or state.hooks
-        nodal = plain({p.pair.name: p.interface() for p in pairs})
+        # before the library refactor the pairs were ``state.hooks`` with ``.pair.name``
+        pairs = state.pairs if hasattr(state, "pairs") else state.hooks
+        nodal = plain({getattr(p, "pair", p).name: p.interface() for p in pairs})
         if comm.size > 1 and len(set(comm.allgather(json.dumps(nodal)))) > 1:
             raise RuntimeError(f"{path}: interface arrays differ between ranks")
         fp["steps"].append({"record": plain(record), "nodal": nodal})

@@ -2,12 +2,13 @@
 surfaces). Regenerates docs/smoothing.md and docs/smoothing_gap_error.png.
 
 A circle of radius R is the exact master surface; the discrete master is the closed
-polygon of n nodes on it (clockwise, so that n = e3 × t points outward). Slave points lie
-at a known signed distance ±d from the circle (outside: gap +d, inside: gap −d) at random
-angles. Each smoothing computes the gap as the contact kernels do — the projection onto
-the curve (closest point, or along the smoothed normal for the averaged-normal variants),
-then g = (x_s − x(ξ̄))·n(ξ̄) on that segment — and its error against the exact gap is
-reported (maximum over all points), for n = 8, 16, 32, 64.
+polygon of n nodes on it (clockwise, so that n = e3 × t points outward), and, for the
+chain ends, an open quarter arc (the end segments' errors reported apart from the
+interior's). Slave points lie at a known signed distance ±d from the circle (outside:
+gap +d, inside: gap −d) at random angles. Each smoothing computes the gap as the contact
+kernels do — the projection onto the curve (closest point, or along the smoothed normal
+for the averaged-normal variants), then g = (x_s − x(ξ̄))·n(ξ̄) on that segment — and its
+error against the exact gap is reported (maximum over all points), for n = 8, 16, 32, 64.
 
     .venv/bin/python benchmarks/gap_accuracy.py
 """
@@ -126,6 +127,58 @@ def gap_errors(smoothing: str, n: int, pts, exact):
     return np.abs(np.asarray(g) - exact)
 
 
+def open_arc(n: int, start: float = 0.3, span: float = 0.5 * np.pi):
+    """An open arc of the circle (a quarter by default) with n segments, clockwise so that
+    n = e3 × t points outward; the chain ends at both arc ends."""
+    phi = start + span - span * np.arange(n + 1) / n
+    x = R * np.c_[np.cos(phi), np.sin(phi)]
+    seg = np.stack([np.arange(n), np.arange(1, n + 1)], axis=1)
+    return x, seg
+
+
+def open_arc_errors(smoothing: str, n: int, rng, start: float = 0.3,
+                    span: float = 0.5 * np.pi) -> tuple[float, float]:
+    """(max gap error of the slave points projecting onto the two end segments, max over
+    the interior segments) on :func:`open_arc`: the slave points at ±D from the circle at
+    random angles within the arc."""
+    x, seg = open_arc(n, start, span)
+    theta = rng.uniform(start, start + span, N_POINTS)
+    sign = np.where(np.arange(N_POINTS) % 2 == 0, 1.0, -1.0)
+    r = R + sign * D
+    pts = np.c_[r * np.cos(theta), r * np.sin(theta)]
+    curve = make_curve(smoothing, x, seg)
+    cp = closest_point(curve, pts)
+    if not cp.ok.all():
+        raise RuntimeError(f"{smoothing}, open arc n = {n}: projections failed")
+    P = curve.split_points(curve.local_points(cp.seg))
+    g, _ = curve.gap(cp.seg, (pts[:, 0], pts[:, 1]), P)
+    err = np.abs(np.asarray(g) - sign * D)
+    end = (cp.seg == 0) | (cp.seg == n - 1)
+    return float(err[end].max()), float(err[~end].max())
+
+
+def open_arc_table() -> str:
+    """Markdown table: end-segment and interior gap errors per smoothing and n, their
+    ratio, and the observed orders of both."""
+    rng = np.random.default_rng(1)
+    h = 0.5 * np.pi * R / np.array(NS)
+    rows = ["| smoothing | " + " | ".join(f"n = {n}: end / interior" for n in NS)
+            + " | order end, interior |", "|---|" + "---|" * len(NS) + "---|"]
+    for s in SMOOTHINGS.names():
+        e = np.array([open_arc_errors(s, n, rng) for n in NS])
+        order = [np.log(e[:-1, k] / e[1:, k]) / np.log(h[:-1] / h[1:]) for k in (0, 1)]
+        rows.append(f"| {s} | " + " | ".join(f"{a:.2e} / {b:.2e} ({a / b:.1f}×)"
+                                             for a, b in e)
+                    + f" | {order[0].mean():.2f}, {order[1].mean():.2f} |")
+    return "\n".join(rows)
+
+
+def _replace_block(text: str, marker: str, table: str) -> str:
+    start, end = f"<!-- {marker} -->", f"<!-- /{marker} -->"
+    i, j = text.index(start) + len(start), text.index(end)
+    return text[:i] + "\n" + table + "\n" + text[j:]
+
+
 def main() -> None:
     rng = np.random.default_rng(0)
     pts, exact = slave_points(rng)
@@ -167,11 +220,11 @@ def main() -> None:
                     + " | " + ", ".join(f"{o:.2f}" for o in orders[s]) + " |")
     table = "\n".join(rows)
     print(table)
+    arc_table = open_arc_table()
+    print(arc_table)
     md = ROOT / "docs" / "smoothing.md"
-    text = md.read_text()
-    start, end = "<!-- gap-table -->", "<!-- /gap-table -->"
-    i, j = text.index(start) + len(start), text.index(end)
-    md.write_text(text[:i] + "\n" + table + "\n" + text[j:])
+    text = _replace_block(md.read_text(), "gap-table", table)
+    md.write_text(_replace_block(text, "open-arc-table", arc_table))
 
 
 if __name__ == "__main__":

@@ -8,7 +8,8 @@ smooth the hub reaction curve comes out.
 Problem (docs/benchmarks.md B3, scene ``demos/scenes/half_rings.toml``, the set-up is ours): a
 moving half ring (R_i = 8, R_e = 10, 4 × 60 quads; slave: its outer arc) inside a fixed half
 ring (R_i = 10, R_e = 12, 4 × 32, clamped cut ends; master: its inner arc), Neo-Hooke
-E = 689.56, ν = 0.32, mortar + ALM. The moving ring's inner arc is driven as a rigid hub:
+E = 689.56, ν = 0.32, mortar with Lagrange multipliers (the scene's). The moving ring's
+inner arc is driven as a rigid hub:
 pressed down by 0.5 (pseudo-time t ∈ [0, 1], 4 steps), then turned anticlockwise about the
 origin by φ_max = arcsin(0.4) = 0.4115 rad (t ∈ [1, 2], 20 steps of Δφ = φ_max / 20), so the
 contact zone slides ≈ 4 along the curved master and the slave's right end slides off the
@@ -52,7 +53,7 @@ printed.)
 
 Other columns: completed (the solver's verdict), load fraction reached (pseudo-time / 2),
 converged steps, cuts (failed increments over the run = steps cut) and steps that needed a
-cut, Newton iterations per converged step (summed over its ALM augmentations; mean and
+cut, Newton iterations per converged step (summed over its augmentations, if any; mean and
 max; the iterations of failed attempts are not included), wall and CPU seconds of the
 run (2 workers of ``benchmarks/pool.py`` on a shared 2-core machine).
 

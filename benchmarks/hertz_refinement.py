@@ -2,7 +2,7 @@
 
 What it measures
     The scene ``demos/scenes/hertz.toml`` (half-disk R = 1 on the block [-1, 1] x [-1, 0],
-    Neo-Hooke E = 1000, nu = 0.3, F = 1, mortar contact with augmented Lagrangian, 2 load
+    Neo-Hooke E = 1000, nu = 0.3, F = 1, mortar contact with Lagrange multipliers, 2 load
     steps) is solved with the element size near the contact point set to h_contact = a/5,
     a/10, a/20 (a = 0.04814, the analytic half-width). Everything else in the scene is kept,
     except that the refined zone radius is set explicitly to REFINE_RADIUS = 0.15 >= 3a, so
@@ -208,8 +208,9 @@ Scene `demos/scenes/hertz.toml` (docs/benchmarks.md B2): a half-disk of radius R
 surface: its arc) is pressed onto the block [−1, 1] × [−1, 0] (master: its top) by a dead
 traction 0.5 on its flat edge, total force F = 1 per unit thickness. Both bodies Neo-Hooke,
 E = 1000, ν = 0.3, plane strain, quadrilateral meshes. Block bottom u_y = 0, u_x = 0 at
-(0, −1); half-disk u_x = 0 at (0, 1) and (0, 0.5). Mortar contact, augmented Lagrangian
-(defaults of the scene), 2 load steps. Only the mesh changes between the runs: element size
+(0, −1); half-disk u_x = 0 at (0, 1) and (0, 0.5). Mortar contact, Lagrange multipliers
+solved by the semi-smooth Newton method with the dual basis (the scene's enforcement,
+docs/design.md §5a), 2 load steps. Only the mesh changes between the runs: element size
 h_c near the contact point, uniform within distance {REFINE_RADIUS} (≥ 3a) of it, growing to
 0.1 away from it (`meshes/hertz.py`).
 

@@ -5,7 +5,7 @@
 
 The table replaces the text between the markers ``<!-- table -->`` and ``<!-- /table -->``
 of docs/stability.md. Columns: converged; Newton iterations per converged step (mean / max,
-summed over the step's ALM augmentations); step cuts over the run; the oscillation measure
+summed over the step's augmentations, if any); step cuts over the run; the oscillation measure
 (largest excess total variation of the nodal pressure over the converged steps, see
 tests/stability/_common.py); wall and CPU seconds of the solve (each run in a
 single-threaded worker process of ``benchmarks/pool.py``); the end of the message when the

@@ -170,7 +170,7 @@ def scene_pairs(scene: Scene, dom: Domain, V) -> list:
                 epsilon=c.enforcement.epsilon, tolerance=c.enforcement.tolerance,
                 friction=c.friction.law, mu=c.friction.mu, E=moduli,
                 cell_tags=dom.cell_tags, n_gauss=c.n_gauss, search_radius=c.search_radius,
-                basis=c.basis))
+                basis=c.basis, slave_smoothing=c.slave_smoothing))
         except ValueError as e:
             raise SceneError(f"contacts[{i}]: {e}") from None
     return pairs

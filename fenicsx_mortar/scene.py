@@ -175,6 +175,9 @@ class Contact:
     #: functions) or "dual" (biorthogonal); default: dual where the multipliers are
     #: unknowns (enforcement "lagrange") and the method offers it (mortar), else standard
     basis: str | None = None
+    #: two-sided smoothing: the slave's geometry in the mortar integrals from its own
+    #: smoothed curve ("hermite"), its test functions linear; "none": the slave chords
+    slave_smoothing: str = "none"
     n_gauss: int | None = None  # default: the master curve's (2 polyline, 4 smoothed)
 
 
@@ -328,6 +331,11 @@ class Scene:
                 if value not in registry:
                     raise SceneError(f"{key}.{name} = {value!r}: must be one of "
                                      f"{', '.join(map(repr, registry.names()))}")
+            if c.slave_smoothing != "none" and (c.slave_smoothing not in SMOOTHINGS
+                                                or not METHODS[c.method].two_sided):
+                raise SceneError(f"{key}.slave_smoothing = {c.slave_smoothing!r}: only the "
+                                 "mortar method smooths the slave surface, with a local curve "
+                                 "('hermite')")
             if c.basis is not None and c.basis not in METHODS[c.method].bases:
                 raise SceneError(f"{key}.basis = {c.basis!r}: method {c.method!r} offers "
                                  f"{', '.join(map(repr, METHODS[c.method].bases))}")

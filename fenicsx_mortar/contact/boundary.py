@@ -68,7 +68,8 @@ def hand_over(c: NodalContributions, weak: np.ndarray) -> NodalContributions:
     if not move.any():
         return c
     node = np.where(move, other, c.node)
-    out = NodalContributions(node, c.slave_nodes, c.master_nodes, c.value, c.grad, c._hess)
+    out = NodalContributions(node, c.slave_nodes, c.master_nodes, c.value, c.grad, c._hess,
+                             c.tail_nodes)
     # Petrov–Galerkin test vectors (smoothed masters) are per contribution, summed by node
     # like the values: they move along with their rows
     out.test = c.test

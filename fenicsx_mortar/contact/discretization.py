@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from . import boundary, mortar, nts
-from .curves import MasterCurve
+from .curves import MasterCurve, make_curve
 from .kernel import NodalContributions, nodal_sum
 from .registry import METHODS
 
@@ -31,14 +31,18 @@ class Discretization:
 
     name = ""
     bases: tuple[str, ...] = ("standard",)
+    #: whether the slave's geometry may be smoothed too (two-sided smoothing)
+    two_sided = False
 
     def __init__(self, slave: Surface, master: Surface, n_gauss: int | None = None,
-                 basis: str = "standard"):
+                 basis: str = "standard", slave_smoothing: str = "none"):
         if basis not in self.bases:
             raise ValueError(f"method {self.name!r} has no {basis!r} multiplier basis "
                              f"(it offers: {', '.join(self.bases)})")
+        if slave_smoothing != "none" and not self.two_sided:
+            raise ValueError(f"method {self.name!r} has no smoothing of the slave surface")
         self.slave, self.master = slave, master
-        self.n_gauss, self.basis = n_gauss, basis
+        self.n_gauss, self.basis, self.slave_smoothing = n_gauss, basis, slave_smoothing
 
     def weighted_gaps(self, xs: np.ndarray, xm: np.ndarray, curve: MasterCurve, pairs
                       ) -> tuple[NodalContributions, NodalContributions, np.ndarray, np.ndarray]:
@@ -60,12 +64,30 @@ class Mortar(Discretization):
     ψ = N (standard basis) or the dual basis Φ."""
 
     bases = ("standard", "dual")
+    two_sided = True
+
+    def __init__(self, slave: Surface, master: Surface, n_gauss: int | None = None,
+                 basis: str = "standard", slave_smoothing: str = "none"):
+        super().__init__(slave, master, n_gauss, basis, slave_smoothing)
+        if slave_smoothing != "none":
+            probe = make_curve(slave_smoothing, slave.X, slave.seg)
+            if probe.point_map is not None:
+                raise ValueError(f"slave smoothing {slave_smoothing!r}: the slave curve must be "
+                                 "local (its points the slave nodes): e.g. 'hermite'")
+
+    def slave_curve(self, xs: np.ndarray) -> MasterCurve | None:
+        """The slave's own smoothed curve through its current nodes (two-sided smoothing)."""
+        if self.slave_smoothing == "none":
+            return None
+        return make_curve(self.slave_smoothing, xs, self.slave.seg)
 
     def weighted_gaps(self, xs, xm, curve, pairs):
         s, m = self.slave, self.master
-        gap, area = mortar.weighted_gaps(xs, s.seg, xm, m.seg, curve, pairs,
-                                         self.n_gauss or curve.gauss_points,
-                                         basis=self.basis)
+        slave_curve = self.slave_curve(xs)
+        n_gauss = self.n_gauss or max(curve.gauss_points,
+                                      slave_curve.gauss_points if slave_curve else 0)
+        gap, area = mortar.weighted_gaps(xs, s.seg, xm, m.seg, curve, pairs, n_gauss,
+                                         basis=self.basis, slave_curve=slave_curve)
         A = s.owned_sum(nodal_sum(area, s.n))
         # slave nodes barely supported by the master (sliding off its end) hand their
         # terms to their supported neighbour (boundary.py)
@@ -81,8 +103,8 @@ class NodeToSegment(Discretization):
     """g̃_j = A_j g_j at the slave node's projection (docs/design.md §1, §3)."""
 
     def __init__(self, slave: Surface, master: Surface, n_gauss: int | None = None,
-                 basis: str = "standard"):
-        super().__init__(slave, master, n_gauss, basis)
+                 basis: str = "standard", slave_smoothing: str = "none"):
+        super().__init__(slave, master, n_gauss, basis, slave_smoothing)
         #: the master segment each slave node projected onto last (−1: none)
         self.segment = np.full(slave.n, -1, dtype=np.int64)
 

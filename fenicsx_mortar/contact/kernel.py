@@ -42,10 +42,13 @@ class NodalContributions:
     grad: np.ndarray          # (K, m)   m = 2*(S+L), order [xs0, ys0, xs1, ys1, .., xm0, ym0, ..]
     # hess: np.ndarray        # (K, m, m)  (property, possibly lazy)
 
-    def __init__(self, node, slave_nodes, master_nodes, value, grad, hess):
+    def __init__(self, node, slave_nodes, master_nodes, value, grad, hess, tail_nodes=None):
         self.node = node
         self.slave_nodes = slave_nodes
         self.master_nodes = master_nodes
+        #: (K, T) more slave nodes whose coordinates come after the master's (the slave
+        #: curve's stencil beyond the segment's two nodes, two-sided smoothing); None: none
+        self.tail_nodes = tail_nodes
         self.value = value
         self.grad = grad
         self._hess = hess
@@ -84,7 +87,8 @@ class NodalContributions:
 
     @property
     def m(self) -> int:
-        return 2 * (self.slave_nodes.shape[1] + self.master_nodes.shape[1])
+        tail = 0 if self.tail_nodes is None else self.tail_nodes.shape[1]
+        return 2 * (self.slave_nodes.shape[1] + self.master_nodes.shape[1] + tail)
 
     @classmethod
     def empty(cls, S: int, L: int) -> "NodalContributions":
@@ -97,7 +101,10 @@ class NodalContributions:
         """(K, m) positions of the local coordinates in the stacked coordinate vector
         ``[slave_x.ravel(), master_x.ravel()]`` (slave node i -> 2i, 2i+1; master node l ->
         2 n_slave + 2l, 2 n_slave + 2l + 1)."""
-        nodes = np.concatenate([self.slave_nodes, self.master_nodes + n_slave], axis=1)
+        parts = [self.slave_nodes, self.master_nodes + n_slave]
+        if self.tail_nodes is not None:
+            parts.append(self.tail_nodes)
+        nodes = np.concatenate(parts, axis=1)
         return np.stack([2 * nodes, 2 * nodes + 1], axis=2).reshape(nodes.shape[0], -1)
 
 

@@ -360,7 +360,7 @@ class _Dual:
 
 
 def _pair_block(X: np.ndarray, pm: np.ndarray, curve: MasterCurve, n_gauss: int,
-                ends: _Ends, test: bool = False):
+                ends: _Ends, test: bool = False, slave: tuple | None = None):
     """Jet kernel for a block of contributing pairs with local coordinates X (K, m) and
     the bounds of their integration intervals (:class:`_Ends`).
 
@@ -368,7 +368,10 @@ def _pair_block(X: np.ndarray, pm: np.ndarray, curve: MasterCurve, n_gauss: int,
     test functionals Ψ_a, Ψ_b (module docstring; else None) (:class:`_Integrand`, which
     carries the bounds, :class:`_Bounds`). The nodal areas follow from the
     bounds in closed form (:func:`_areas`). With ``test`` the jets run over [X, v] with 8
-    virtual displacements v = (v_a, v_b, v_c, v_d) appended (value 0).
+    virtual displacements v = (v_a, v_b, v_c, v_d) appended (value 0). With ``slave`` =
+    (slave curve, slave segments) the slave points of the Gauss stage lie on that curve
+    (two-sided smoothing): X then ends with the coordinates of the slave curve's stencil
+    nodes before a and after b.
     """
     L = curve.stencil_size
     m = X.shape[1]
@@ -402,7 +405,15 @@ def _pair_block(X: np.ndarray, pm: np.ndarray, curve: MasterCurve, n_gauss: int,
     # and the Gauss sums add contiguous slabs
     s, w = s[:, None], w[:, None]
     zeta = z_lo + width * s
-    x_s = ad.add(xa, ad.scale(ad.sub(xb, xa), zeta))
+    if slave is None:
+        x_s = ad.add(xa, ad.scale(ad.sub(xb, xa), zeta))
+    else:
+        # the same ζ on the slave's own curve through (prev(a), a, b, next(b)); the
+        # segmentation, the measure and the test functions stay those of the chord
+        slave_curve, ps = slave
+        t0 = 6 + 2 * L
+        x_s = slave_curve.derivatives(ps[None, :], zeta, [(vz[t0], vz[t0 + 1]), xa, xb,
+                                                         (vz[t0 + 2], vz[t0 + 3])], 0)[0]
     if test:
         g, xi, n = curve.gap_frame(pm[None, :], x_s, P)
     else:
@@ -453,7 +464,8 @@ def _areas(X: np.ndarray, bounds: _Bounds):
 def weighted_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarray,
                   master_seg: np.ndarray, curve: MasterCurve,
                   pairs: Tuple[np.ndarray, np.ndarray], n_gauss: int = 2,
-                  block: int = 2048, basis: str = "standard"
+                  block: int = 2048, basis: str = "standard",
+                  slave_curve: MasterCurve | None = None
                   ) -> Tuple[NodalContributions, NodalContributions]:
     """Mortar weighted gaps g̃_j and nodal areas A_j with exact derivatives, and D, M.
 
@@ -468,6 +480,12 @@ def weighted_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarr
     ``basis``: the weight of the weighted gaps, ``"standard"`` (N_j) or ``"dual"`` (Φ_j,
     :class:`_Dual`); the nodal areas are always A_j = ∫ N_j dΓ (positive: the scale of
     g̃_j/A_j).
+
+    ``slave_curve`` (two-sided smoothing, docs/smoothing.md): a curve of the same kind as
+    the master's built on the slave chain (a local one: its stencil the segment's nodes and
+    their neighbours); the gap is then measured from the points of that curve instead of
+    the slave chords, and the traction is tested with the linear functions of both sides
+    (the Petrov–Galerkin test vectors, "Master-side test functions" above).
 
     The jet work runs over blocks of ``block`` pairs: the arrays then stay a few MB, which
     avoids the page-fault cost of fresh huge temporaries and stays in cache.
@@ -499,15 +517,21 @@ def weighted_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarr
 
     na, nb = lay.na.take(keep), lay.nb.take(keep)
     stencil = curve.stencil(pm)
+    tail = None
+    if slave_curve is not None:
+        tail = slave_curve.stencil(ps)[:, [0, 3]]        # prev(a), next(b) on the slave
+        m += 4
     X = np.empty((K, m))
     for col, v in enumerate(xa0 + xb0):        # columns x_a, y_a, x_b, y_b
         X[:, col] = v.take(keep)
-    X[:, 4:] = curve.points(master_x)[stencil].reshape(K, 2 * L)
+    X[:, 4:4 + 2 * L] = curve.points(master_x)[stencil].reshape(K, 2 * L)
+    if tail is not None:
+        X[:, 4 + 2 * L:] = xs[tail].reshape(K, 4)
 
     # outputs per (node a / b, pair): reshaped to rows [0, K) for node a, [K, 2K) for node b
     val = np.empty((2, 2, K))                   # (gap / area, node, pair)
     grad = np.empty((2, 2, K, m))
-    test = curve.hat_test
+    test = curve.hat_test or slave_curve is not None
     if test:
         tgrad = np.empty((2, K, 8))
     gap_blocks, test_blocks = [], []
@@ -515,7 +539,8 @@ def weighted_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarr
         b1 = min(b0 + block, K)
         gaps, tests = _pair_block(
             X[b0:b1], pm[b0:b1], curve, n_gauss,
-            ends if b1 - b0 == K else ends.subset(slice(b0, b1)), test)
+            ends if b1 - b0 == K else ends.subset(slice(b0, b1)), test,
+            None if slave_curve is None else (slave_curve, ps[b0:b1]))
         # values and gradients now; the Hessians when the tangent asks (_Deferred)
         with ad.gradients_only():
             q = _nodal(gaps)
@@ -548,14 +573,16 @@ def weighted_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarr
             tgrad, jac = _dual(tgrad), _Dual(jac)
     elif basis != "standard":
         raise ValueError(f"unknown multiplier basis {basis!r}; expected 'standard' or 'dual'")
+    tail_nodes = None if tail is None else np.tile(tail, (2, 1))
     gap = NodalContributions(node, slave_nodes, master_nodes, val[0].reshape(2 * K),
-                             grad[0].reshape(2 * K, m), hess)
+                             grad[0].reshape(2 * K, m), hess, tail_nodes)
     mc, md = master_seg[pm, 0], master_seg[pm, 1]
     if test:
         gap.test = MasterTest(np.tile(np.stack([na, nb, mc, md], axis=1), (2, 1)),
                               tgrad.reshape(2 * K, 8), jac)
     area = NodalContributions(node.copy(), slave_nodes.copy(), master_nodes.copy(),
-                              val[1].reshape(2 * K), grad[1].reshape(2 * K, m), area_hessian)
+                              val[1].reshape(2 * K), grad[1].reshape(2 * K, m), area_hessian,
+                              None if tail_nodes is None else tail_nodes.copy())
 
     return gap, area
 

@@ -38,7 +38,10 @@ class ContactPair:
     ε = E/h (h the mean slave segment length: a pressure per gap of a surface layer one
     element deep); or a mapping cell tag → E of every body, with ``cell_tags``: the pair
     then also warns when the slave is the stiffer body with the finer segments. With
-    ``cell_tags`` each surface must bound cells of one tag (one body)."""
+    ``cell_tags`` each surface must bound cells of one tag (one body). ``basis``: the
+    multiplier basis of the weighted gaps ("dual" or "standard"; default dual with
+    multipliers); ``slave_smoothing``: "hermite" measures the gap from the slave's own
+    smoothed curve too (two-sided smoothing, mortar only; docs/smoothing.md)."""
 
     def __init__(self, V, facet_tags, slave: int | Sequence[int], master: int | Sequence[int],
                  *, name: str = "contact", method: str = "mortar", smoothing: str = "none",
@@ -46,7 +49,7 @@ class ContactPair:
                  tolerance: float = 1e-10, friction: str = "none", mu: float = 0.0,
                  E: float | Mapping[int, float] | None = None, cell_tags=None,
                  n_gauss: int | None = None, search_radius: float | None = None,
-                 basis: str | None = None):
+                 basis: str | None = None, slave_smoothing: str = "none"):
         self.name = name
         self.slave = build_surface(V, facet_tags, slave, f"{name}:slave", cell_tags)
         self.master = build_surface(V, facet_tags, master, f"{name}:master", cell_tags)
@@ -82,7 +85,8 @@ class ContactPair:
         kind = METHODS[method]
         if basis is None:   # the dual basis where the multipliers are unknowns
             basis = "dual" if self.unknowns and "dual" in kind.bases else "standard"
-        self.discretization = kind(s, m, n_gauss, basis=basis)
+        self.discretization = kind(s, m, n_gauss, basis=basis,
+                                   slave_smoothing=slave_smoothing)
         self.friction = FRICTION_LAWS[friction](mu, self.enforcement.epsilon0, s.n)
         self.smoothing = smoothing
         self.radius = search_radius or 2.0 * h
@@ -265,9 +269,12 @@ class ContactPair:
                      for i in range(pm_csr.shape[0])]
             stencil = [np.unique(np.concatenate([reach[i] for i in row])) for row in stencil]
         per_node: dict[int, set[int]] = {}
-        for (a, b) in s.seg:
+        slave_curve = getattr(self.discretization, "slave_curve", lambda x: None)(s.X)
+        stencil_s = (slave_curve.stencil(np.arange(len(s.seg))) if slave_curve is not None
+                     else s.seg)
+        for (a, b), row in zip(s.seg, stencil_s):
             for j in (a, b):
-                per_node.setdefault(int(j), set()).update((int(a), int(b)))
+                per_node.setdefault(int(j), set()).update(int(i) for i in row)
         for k, seg_i in enumerate(ps):
             a, b = s.seg[seg_i]
             for j in (a, b):

@@ -179,3 +179,22 @@ def test_taylor_remainder_with_multipliers_and_friction(method, state):
     hs, rem = taylor_remainders(solver, pair, rng, check)
     rates = np.diff(np.log(rem)) / np.diff(np.log(hs))
     assert np.all(rates > 1.8), (rem, rates)
+
+
+@pytest.mark.parametrize("smoothing", ["none", "hermite", "bspline"])
+@pytest.mark.parametrize("enforcement", ["lagrange", "alm"])
+def test_taylor_remainder_with_two_sided_smoothing(enforcement, smoothing):
+    """The slave's geometry from its own Hermite curve (two-sided smoothing): the gap
+    depends on the slave segment's neighbours too; the tangent stays exact."""
+    solver, pair = system("mortar", enforcement, smoothing=smoothing)
+    pair.discretization.slave_smoothing = "hermite"
+    rng = np.random.default_rng(9)
+    if enforcement == "lagrange":
+        multiplier_state(solver, pair, 0.013, rng)
+    else:
+        solver.x.array[:] = upper_block_state(solver, 0.013, rng)
+    hs, rem = taylor_remainders(solver, pair, rng,
+                                lambda st: st.active.sum() >= 5 or pytest.fail("few active"))
+    assert pair.state.gap.tail_nodes is not None
+    rates = np.diff(np.log(rem)) / np.diff(np.log(hs))
+    assert np.all(rates > 1.8), (rem, rates)

@@ -210,3 +210,17 @@ def test_condition_polynomial_is_the_condition(smoothing, shape):
     scale = np.abs(F).max()
     assert np.abs(G - F).max() < 1e-13 * scale
     assert np.abs(dG - dF).max() < 1e-13 * np.abs(dF).max()
+
+
+@pytest.mark.parametrize("n", [8, 16, 32])
+def test_hermite_keeps_its_order_up_to_an_open_chain_end(n):
+    """On an open quarter-circle arc the Hermite curve's end segments are as accurate as
+    its interior (the end tangent from the circle through the last three nodes): the gap
+    error of points projecting onto the end segments within 10x the interior's, and both
+    fall as h^4 (the polyline's end error is its interior's, O(h^2))."""
+    from benchmarks.gap_accuracy import open_arc_errors
+    rng = np.random.default_rng(4)
+    end, interior = open_arc_errors("hermite", n, rng)
+    assert end <= 10.0 * interior
+    end2, interior2 = open_arc_errors("hermite", 2 * n, np.random.default_rng(4))
+    assert np.log2(end / end2) > 3.5 and np.log2(interior / interior2) > 3.5
