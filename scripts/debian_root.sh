@@ -162,6 +162,9 @@ cleanup() {
 trap cleanup EXIT
 trap 'exit 130' INT TERM HUP
 mnt() { mount "$@"; mounted+=("${@: -1}"); }
+# The root itself a mount point, as / is on a real machine: unshare --propagation (this
+# script run inside such a root, .ci/run on a Debian 13 host simulated) needs one.
+mnt --bind "$ROOT" "$ROOT"
 mnt -t proc proc "$ROOT/proc"
 mnt --rbind /dev "$ROOT/dev"          # with /dev/pts and /dev/shm (Open MPI's shared memory)
 mountpoint -q "$ROOT/dev/shm" || mnt -t tmpfs -o mode=1777 shm "$ROOT/dev/shm"
