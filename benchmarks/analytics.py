@@ -11,6 +11,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.integrate import trapezoid
 
 # ---------------------------------------------------------------- Hertz (B2)
 # demos/scenes/hertz.toml, docs/hertz.md: R = 1, F = 1 (traction 0.5 on the flat edge of
@@ -60,7 +61,7 @@ def pressure_metrics(x, p, force: float) -> dict:
                           bounds=(0.5 * a, 2.0 * a), method="bounded", options={"xatol": 1e-10})
     xs = np.linspace(-a, a, 4001)
     exact = pressure(xs, a, p0)
-    l2 = np.sqrt(np.trapz((np.interp(xs, x, p) - exact)**2, xs) / np.trapz(exact**2, xs))
+    l2 = np.sqrt(trapezoid((np.interp(xs, x, p) - exact)**2, xs) / trapezoid(exact**2, xs))
     a_fit = float(fit.x)
     return {"p0_error": p_max / p0 - 1.0, "a_error": a_fit / a - 1.0, "l2_error": float(l2),
             "force_error": abs(force - HERTZ_F) / HERTZ_F, "p_max": p_max, "a_fit": a_fit}

@@ -38,6 +38,19 @@ class ClosestPoint(NamedTuple):
     ok: np.ndarray         # (n,) False: Newton failed or the hand-over did not settle
 
 
+def _nearest_nodes(nodes: np.ndarray, pts: np.ndarray, k: int) -> np.ndarray:
+    """(n, k) indices of the k nodes nearest to each point; a non-finite point gets node 0
+    (its projection then fails and is reported). SciPy >= 1.15's KD-tree refuses
+    non-finite query points ("'x' must be finite"), so only the finite ones are asked."""
+    finite = np.isfinite(pts).all(axis=1)
+    near = np.zeros((pts.shape[0], k), dtype=np.intp)
+    if finite.any():
+        _, idx = cKDTree(nodes).query(pts[finite], k=k)
+        idx = np.asarray(idx).reshape(int(finite.sum()), k)
+        near[finite] = np.where(idx < nodes.shape[0], idx, 0)
+    return near
+
+
 def closest_point(curve, points: np.ndarray, n_starts: int = 2,
                   max_hops: int = 64) -> ClosestPoint:
     """Project ``points (n, 2)`` onto the whole curve (values only).
@@ -52,9 +65,8 @@ def closest_point(curve, points: np.ndarray, n_starts: int = 2,
     n = pts.shape[0]
     before, after = curve.node_segments()
     used = np.unique(curve.seg)
-    _, near = cKDTree(curve.x[used]).query(pts, k=min(n_starts, used.shape[0]))
-    near = np.asarray(near).reshape(n, -1)
-    near = used[np.where(near < used.shape[0], near, 0)]      # (non-finite points: any)
+    near = _nearest_nodes(curve.x[used], pts, min(n_starts, used.shape[0]))
+    near = used[near]
     starts = np.concatenate([before[near], after[near]], axis=1)          # (n, 2 n_starts)
     starts = np.where(starts >= 0, starts, np.concatenate([after[near], before[near]], 1))
     owner = np.repeat(np.arange(n), starts.shape[1])

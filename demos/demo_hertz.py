@@ -17,6 +17,7 @@ contact force equals the applied force to round-off.
 from pathlib import Path
 
 import numpy as np
+from scipy.integrate import trapezoid
 from scipy.optimize import minimize_scalar
 
 from fenicsx_mortar import load_scene, solve
@@ -39,7 +40,7 @@ def hertz_metrics(result) -> dict:
         bounds=(0.5 * a, 2.0 * a), method="bounded", options={"xatol": 1e-10})
     xs = np.linspace(-a, a, 4001)
     exact = p0 * np.sqrt(np.clip(1 - xs**2 / a**2, 0, None))
-    l2 = np.sqrt(np.trapz((np.interp(xs, x, p) - exact)**2, xs) / np.trapz(exact**2, xs))
+    l2 = np.sqrt(trapezoid((np.interp(xs, x, p) - exact)**2, xs) / trapezoid(exact**2, xs))
     fy = result.steps[-1]["contact"]["hertz"]["force_on_slave"][1]  # block pushes disk up
     return {"p0_error": p_max / p0 - 1, "a_error": fit.x / a - 1, "l2_error": l2,
             "force_error": abs(fy - F) / F, "p_max": p_max, "a_fit": fit.x}

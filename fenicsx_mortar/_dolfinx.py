@@ -1,24 +1,32 @@
-"""Every DOLFINx-version-specific call (written against Debian's DOLFINx 0.5.2).
+"""Every DOLFINx call of the package, on DOLFINx 0.5 (Debian 12) and 0.9 (Debian 13).
 
-Porting to DOLFINx 0.9/0.10 should touch this file alone: e.g. ``fem.VectorFunctionSpace``
-→ ``fem.functionspace(mesh, ("Lagrange", 1, (2,)))``, ``u.vector`` → ``u.x.petsc_vec``,
-``mesh.geometry.dofmap`` layout, ``gmshio.model_to_mesh`` return type, ``XDMFFile`` API.
+The rest of the package (and the tests and benchmarks) calls DOLFINx only through this
+module. Written against the DOLFINx 0.9 API: what is spelled differently in another
+version is one function of ``_dolfinx_versions`` (``api`` below: ``v0_9`` or ``v0_5``,
+picked by ``dolfinx.__version__``); the calls made here directly are the same in 0.5 to
+0.11 (docs/dolfinx-versions.md). Array shapes are 0.9's: the geometry and dof maps are
+(num_cells, k) arrays.
 """
 from __future__ import annotations
 
 import logging
 
+import dolfinx
 import numpy as np
 import ufl
-from dolfinx import cpp, fem, io, mesh as dmesh
+from dolfinx import fem, io, mesh as dmesh
 from dolfinx.fem import petsc as fpetsc
-from dolfinx.io import gmshio
 from mpi4py import MPI
 from petsc4py import PETSc
+
+from ._dolfinx_versions import select
 
 # The JIT's C compilation (cffi through setuptools) lowers the root logger to INFO and
 # prints every compiler command; keep warnings only.
 logging.getLogger().addFilter(lambda r: r.name != "root" or r.levelno >= logging.WARNING)
+
+VERSION = dolfinx.__version__
+api = select(VERSION)
 
 Mesh = dmesh.Mesh
 Function = fem.Function
@@ -27,15 +35,17 @@ ScalarType = PETSc.ScalarType
 
 def model_to_mesh(model, comm: MPI.Comm, rank: int = 0):
     """gmsh model (on ``rank``) → (mesh, cell tags, facet tags), distributed over ``comm``."""
-    return gmshio.model_to_mesh(model, comm, rank, gdim=2)
+    return api.model_to_mesh(model, comm, rank, gdim=2)
 
 
 def vector_space(msh: Mesh):
-    return fem.VectorFunctionSpace(msh, ("Lagrange", 1))
+    """P1 displacements: the vector Lagrange space of degree 1."""
+    return api.functionspace(msh, ("Lagrange", 1, (2,)))
 
 
 def tensor_dg0_space(msh: Mesh):
-    return fem.TensorFunctionSpace(msh, ("DG", 0))
+    """Cellwise constant 2×2 tensors (the Cauchy stress output)."""
+    return api.functionspace(msh, ("DG", 0, (2, 2)))
 
 
 def constant(msh: Mesh, value):
@@ -47,14 +57,24 @@ def form(expr):
     return fem.form(expr)
 
 
+def _locate_dofs(V, dim: int, entities: np.ndarray) -> np.ndarray:
+    """``fem.locate_dofs_topological`` with the entity-cell connectivity it needs made
+    first (0.5 made it itself; 0.9 raises "Entity-to-cell connectivity has not been
+    computed")."""
+    msh = V.mesh
+    tdim = msh.topology.dim
+    msh.topology.create_connectivity(dim, tdim)
+    msh.topology.create_connectivity(tdim, dim)
+    return fem.locate_dofs_topological(V, dim, np.asarray(entities, dtype=np.int32))
+
+
 def facet_dofs(V, component: int, facets: np.ndarray) -> np.ndarray:
     """Unrolled dofs of component ``component`` on the given facets (owned and ghost)."""
-    tdim = V.mesh.topology.dim
-    return fem.locate_dofs_topological(V.sub(component), tdim - 1, facets)
+    return _locate_dofs(V.sub(component), V.mesh.topology.dim - 1, facets)
 
 
 def vertex_dofs(V, component: int, vertices: np.ndarray) -> np.ndarray:
-    return fem.locate_dofs_topological(V.sub(component), 0, vertices)
+    return _locate_dofs(V.sub(component), 0, vertices)
 
 
 def dirichletbc(value: fem.Constant, dofs: np.ndarray, V, component: int):
@@ -63,15 +83,15 @@ def dirichletbc(value: fem.Constant, dofs: np.ndarray, V, component: int):
 
 def dirichletbc_function(g: fem.Function, V, facets: np.ndarray):
     """Both components on ``facets`` prescribed by the vector Function ``g`` in V."""
-    dofs = fem.locate_dofs_topological(V, V.mesh.topology.dim - 1, facets)
-    return fem.dirichletbc(g, dofs)
+    return fem.dirichletbc(g, _locate_dofs(V, V.mesh.topology.dim - 1, facets))
 
 
 def locate_vertices(msh: Mesh, marker) -> np.ndarray:
     return dmesh.locate_entities(msh, 0, marker)
 
 
-def cells_of_vertices(msh: Mesh) -> "cpp.graph.AdjacencyList_int32":
+def cells_of_vertices(msh: Mesh):
+    """AdjacencyList vertex → its cells (``.links(v)``)."""
     msh.topology.create_connectivity(0, msh.topology.dim)
     return msh.topology.connectivity(0, msh.topology.dim)
 
@@ -88,6 +108,16 @@ def facet_vertices(msh: Mesh):
     return msh.topology.connectivity(tdim - 1, 0)
 
 
+def unit_square(comm: MPI.Comm, nx: int, ny: int) -> Mesh:
+    """The unit square in 2·nx·ny triangles (tests)."""
+    return dmesh.create_unit_square(comm, nx, ny)
+
+
+def midpoints(msh: Mesh, dim: int, entities: np.ndarray) -> np.ndarray:
+    """(n, 3) midpoints of the given local entities of dimension ``dim``."""
+    return dmesh.compute_midpoints(msh, dim, np.asarray(entities, dtype=np.int32))
+
+
 def num_owned_cells(msh: Mesh) -> int:
     return msh.topology.index_map(msh.topology.dim).size_local
 
@@ -99,6 +129,8 @@ def num_cells(msh: Mesh) -> int:
 
 
 def num_owned_facets(msh: Mesh) -> int:
+    """(The facets are made first: 0.9's ``index_map`` raises for entities not made yet.)"""
+    msh.topology.create_entities(msh.topology.dim - 1)
     return msh.topology.index_map(msh.topology.dim - 1).size_local
 
 
@@ -118,17 +150,17 @@ def node_coordinates(msh: Mesh) -> np.ndarray:
 
 def cell_nodes(msh: Mesh) -> np.ndarray:
     """(n_cells, k) geometry nodes of each cell (linear cells of one type)."""
-    return msh.geometry.dofmap.array.reshape(num_cells(msh), -1)
+    return api.geometry_dofmap(msh)
 
 
 def input_node_numbers(msh: Mesh) -> np.ndarray:
     """The mesh file's (gmsh's) number of every geometry node on this rank."""
-    return np.asarray(msh.geometry.input_global_indices)
+    return api.input_global_indices(msh)
 
 
 def cell_dofs(V) -> np.ndarray:
     """(n_cells, k) dof blocks (nodes) of each cell, in the cell's reference order."""
-    return V.dofmap.list.array.reshape(num_cells(V.mesh), -1)
+    return api.dofmap_list(V)
 
 
 def dof_coordinates(V) -> np.ndarray:
@@ -151,7 +183,7 @@ def vertex_to_geometry_node(msh: Mesh) -> np.ndarray:
     tdim = msh.topology.dim
     msh.topology.create_connectivity(tdim, 0)
     c2v = msh.topology.connectivity(tdim, 0).array
-    g = msh.geometry.dofmap.array
+    g = api.geometry_dofmap(msh).ravel()
     nv = msh.topology.index_map(0).size_local + msh.topology.index_map(0).num_ghosts
     out = np.full(nv, -1, dtype=np.int32)
     out[c2v] = g  # same local ordering within each linear cell
@@ -180,7 +212,7 @@ def vertex_dofs_all(V, vertices: np.ndarray) -> np.ndarray:
     tdim = msh.topology.dim
     msh.topology.create_connectivity(tdim, 0)
     c2v = msh.topology.connectivity(tdim, 0).array
-    blocks = V.dofmap.list.array
+    blocks = api.dofmap_list(V).ravel()
     nv = msh.topology.index_map(0).size_local + msh.topology.index_map(0).num_ghosts
     v2b = np.full(nv, -1, dtype=np.int64)
     v2b[c2v] = blocks
@@ -193,15 +225,16 @@ def vertex_dofs_all(V, vertices: np.ndarray) -> np.ndarray:
 
 
 def create_matrix(a_form) -> PETSc.Mat:
-    return fpetsc.create_matrix(a_form)
+    return api.create_matrix(a_form)
 
 
 def create_vector(L_form) -> PETSc.Vec:
-    return fpetsc.create_vector(L_form)
+    return api.create_vector(L_form)
 
 
 def function_vector(u: fem.Function) -> PETSc.Vec:
-    return u.vector
+    """The ghosted PETSc Vec over ``u.x`` (writes to it are writes to u)."""
+    return api.petsc_vec(u)
 
 
 def assemble_residual(b: PETSc.Vec, L_form, a_form, bcs, x: PETSc.Vec, extra=None) -> None:
@@ -209,11 +242,11 @@ def assemble_residual(b: PETSc.Vec, L_form, a_form, bcs, x: PETSc.Vec, extra=Non
     with b.localForm() as loc:
         loc.set(0.0)
     fpetsc.assemble_vector(b, L_form)
-    fpetsc.apply_lifting(b, [a_form], bcs=[bcs], x0=[x], scale=-1.0)
+    api.apply_lifting(b, [a_form], bcs=[bcs], x0=[x], alpha=-1.0)
     b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
     if extra is not None:
         extra(b)
-    fpetsc.set_bc(b, bcs, x, -1.0)
+    api.set_bc(b, bcs, x, alpha=-1.0)
 
 
 def assemble_unconstrained_residual(b: PETSc.Vec, L_form) -> None:
@@ -227,7 +260,7 @@ def assemble_jacobian(A: PETSc.Mat, a_form, bcs, extra=None) -> None:
     """A = dF/du with identity rows/columns on Dirichlet dofs; ``extra(A)`` adds entries
     (with ADD_VALUES, rows/columns of Dirichlet dofs must be skipped by the caller)."""
     A.zeroEntries()
-    fpetsc.assemble_matrix(A, a_form, bcs=bcs)
+    api.assemble_matrix(A, a_form, bcs)
     A.assemblyBegin(PETSc.Mat.AssemblyType.FLUSH)
     A.assemblyEnd(PETSc.Mat.AssemblyType.FLUSH)
     if extra is not None:
@@ -243,11 +276,11 @@ def bc_dofs(bcs) -> np.ndarray:
 
 def expression(expr, V) -> fem.Expression:
     """Compile a UFL expression for interpolation into V."""
-    return fem.Expression(expr, V.element.interpolation_points())
+    return fem.Expression(expr, api.interpolation_points(V))
 
 
 def interpolate(target: fem.Function, compiled: fem.Expression, cells: np.ndarray) -> None:
-    target.interpolate(compiled, cells)
+    target.interpolate(compiled, np.asarray(cells, dtype=np.int32))
 
 
 # ----------------------------------------------------------------------------- output
@@ -287,29 +320,35 @@ def matrix_with_couplings(a_form, V, blocks: list[np.ndarray]) -> PETSc.Mat:
     assembly squeezes every preallocated slot not written yet, and the first Jacobian would
     then reallocate the whole bulk pattern entry by entry (Hertz, 23k dofs: 23 s instead
     of 0.9 s)."""
-    im = V.dofmap.index_map
     l2g = local_to_global_blocks(V)
     order = np.argsort(l2g)
     pattern = fem.create_sparsity_pattern(a_form)
     known = []
     for blk in blocks:
-        pos = np.searchsorted(l2g, blk, sorter=order)
-        pos = np.minimum(pos, len(order) - 1)
-        local = order[pos][l2g[order[pos]] == blk].astype(np.int32)
+        local = _held_blocks(l2g, order, np.asarray(blk))
         if len(local):
             pattern.insert(local, local)
             known.append(local)
-    pattern.assemble()
-    A = cpp.la.petsc.create_matrix(a_form.mesh.comm, pattern)
-    fpetsc.assemble_matrix(A, a_form)
+    A = api.matrix_from_pattern(a_form.mesh.comm, pattern)
+    api.assemble_matrix(A, a_form, [])
     bs = V.dofmap.index_map_bs
     for local in known:
         g = (l2g[local][:, None] * bs + np.arange(bs)).ravel().astype(PETSc.IntType)
         A.setValues(g, g, np.zeros((len(g), len(g))), addv=PETSc.InsertMode.ADD)
     A.assemble()
     A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
-    del im
     return A
+
+
+def _held_blocks(l2g: np.ndarray, order: np.ndarray, blk: np.ndarray) -> np.ndarray:
+    """Local numbers (int32) of the global blocks ``blk`` this rank holds (owned or ghost),
+    given its local-to-global map and that map's argsort. Only these can enter the local
+    sparsity pattern; a rank that holds no dofs at all gets none (the search below would
+    index an empty array)."""
+    if len(l2g) == 0 or len(blk) == 0:
+        return np.zeros(0, dtype=np.int32)
+    pos = np.minimum(np.searchsorted(l2g, blk, sorter=order), len(order) - 1)
+    return order[pos][l2g[order[pos]] == blk].astype(np.int32)
 
 
 def quadrature_expression(expr, msh: Mesh, degree: int) -> fem.Expression:
@@ -326,7 +365,11 @@ def cell_midpoints(msh: Mesh, cells: np.ndarray) -> np.ndarray:
     return node_coordinates(msh)[cell_nodes(msh)[cells]].mean(axis=1)
 
 
+def expression_eval(expr: fem.Expression, msh: Mesh, cells: np.ndarray) -> np.ndarray:
+    """Values of a compiled expression on the given local cells."""
+    return api.expression_eval(expr, msh, cells)
+
+
 def jit_cache_dir():
     """The directory of DOLFINx's JIT cache (FFCx modules)."""
-    from dolfinx import jit
-    return jit.get_parameters()["cache_dir"]
+    return api.jit_cache_dir()

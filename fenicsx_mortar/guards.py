@@ -209,7 +209,8 @@ class StepGuard:
     def inverted(self) -> str | None:
         """Which cells have J ≤ 0 at a quadrature point (collective)."""
         comm = self.msh.comm
-        J = self.J.eval(self.cells).reshape(len(self.cells), -1).min(axis=1)
+        J = dx.expression_eval(self.J, self.msh, self.cells)
+        J = J.reshape(len(self.cells), -1).min(axis=1)
         bad = np.flatnonzero(J <= 0)
         count = comm.allreduce(len(bad), op=MPI.SUM)
         if count == 0:

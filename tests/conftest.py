@@ -10,8 +10,10 @@ ROOT = Path(__file__).resolve().parents[1]
 # pytest is started
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
+# OMP_NUM_THREADS: Debian 13's MUMPS runs OpenMP threads, one per core in every rank, so
+# mpirun -n 2..4 on 2 cores ran the parallel solves 3x slower (thread oversubscription)
 MPI_ENV = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
-           "OMPI_MCA_rmaps_base_oversubscribe": "1"}
+           "OMPI_MCA_rmaps_base_oversubscribe": "1", "OMP_NUM_THREADS": "1"}
 
 
 def run_cli(*args: str, ranks: int = 1, timeout: float = 600) -> subprocess.CompletedProcess:

@@ -100,7 +100,7 @@ def test_singular_factorization_is_a_step_failure():
 
     import fenicsx_mortar as fm
     msh = dolfinx.mesh.create_unit_square(MPI.COMM_WORLD, 4, 4)
-    V = dolfinx.fem.VectorFunctionSpace(msh, ("Lagrange", 1))
+    V = fm._dolfinx.vector_space(msh)
     u, v = dolfinx.fem.Function(V), ufl.TestFunction(V)
     left = dolfinx.mesh.locate_entities(msh, 2, lambda x: x[0] < 0.5 + 1e-12)
     tags = dolfinx.mesh.meshtags(msh, 2, np.sort(left), np.ones(len(left), np.int32))

@@ -304,8 +304,9 @@ def test_unknown_parameter_raises(name):
 
 @pytest.mark.parametrize("cell", CELLS)
 def test_patch_test_through_dolfinx_gmshio(cell: str):
-    gmshio = pytest.importorskip("dolfinx.io.gmshio")
     from mpi4py import MPI
+
+    from fenicsx_mortar import _dolfinx as dx
 
     expected_facets = {"lower_bottom": 16, "lower_right": 8, "lower_top_right": 4,
                        "lower_top_middle": 8, "lower_top_left": 4, "lower_left": 8,
@@ -314,16 +315,15 @@ def test_patch_test_through_dolfinx_gmshio(cell: str):
     per_quad = 1 if cell == "quadrilateral" else 2
     with built("patch_test", cell=cell) as model:
         tags = {model.getPhysicalName(d, t): t for d, t in model.getPhysicalGroups()}
-        mesh, ct, ft = gmshio.model_to_mesh(model, MPI.COMM_WORLD, 0, gdim=2)
+        mesh, ct, ft = dx.model_to_mesh(model, MPI.COMM_WORLD, 0)
     assert mesh.topology.cell_type.name == cell
-    assert mesh.topology.index_map(2).size_local == per_quad * (128 + 80)
+    assert dx.num_owned_cells(mesh) == per_quad * (128 + 80)
     assert len(ct.find(tags["lower"])) == per_quad * 128
     assert len(ct.find(tags["upper"])) == per_quad * 80
     for group, n in expected_facets.items():
         assert len(ft.find(tags[group])) == n, group
     # The tagged slave facets are the 20 equal pieces of y = 2, x in [1, 3].
-    from dolfinx.mesh import compute_midpoints
-    mid = compute_midpoints(mesh, 1, ft.find(tags["upper_bottom"]))
+    mid = dx.midpoints(mesh, 1, ft.find(tags["upper_bottom"]))
     assert np.allclose(mid[:, 1], 2.0)
     assert np.allclose(np.sort(mid[:, 0]), np.linspace(1.05, 2.95, 20))
 
@@ -332,14 +332,15 @@ def test_patch_test_through_dolfinx_gmshio(cell: str):
 @pytest.mark.parametrize("name", list(SPECS))
 def test_every_generator_converts_with_gmshio(name: str, cell: str):
     """Every body cell and group facet survives gmshio with its tag (one tag per facet)."""
-    gmshio = pytest.importorskip("dolfinx.io.gmshio")
     from mpi4py import MPI
+
+    from fenicsx_mortar import _dolfinx as dx
 
     with built(name, cell=cell) as model:
         tags = {model.getPhysicalName(d, t): t for d, t in model.getPhysicalGroups()}
         ref = extract(model)
-        mesh, ct, ft = gmshio.model_to_mesh(model, MPI.COMM_WORLD, 0, gdim=2)
-    assert mesh.topology.index_map(2).size_local == len(ref.all_cells)
+        mesh, ct, ft = dx.model_to_mesh(model, MPI.COMM_WORLD, 0)
+    assert dx.num_owned_cells(mesh) == len(ref.all_cells)
     for body, (cells, _) in ref.bodies.items():
         assert len(ct.find(tags[body])) == len(cells)
     for group, edges in ref.facets.items():

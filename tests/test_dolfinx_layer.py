@@ -1,0 +1,120 @@
+"""The DOLFINx version layer: fenicsx_mortar/_dolfinx.py over one module per API generation
+(fenicsx_mortar/_dolfinx_versions/). The suite as a whole runs on each version (.ci/run:
+0.5.2 on Debian 12, 0.9 in a Debian 13 root); these tests check the layer's own promises."""
+import ast
+import inspect
+import re
+import sys
+import textwrap
+
+import pytest
+
+from conftest import ROOT, run_python
+from fenicsx_mortar import _dolfinx as dx
+from fenicsx_mortar._dolfinx_versions import GENERATIONS, select, v0_5, v0_9
+
+LAYER = {ROOT / "fenicsx_mortar" / "_dolfinx.py", ROOT / "fenicsx_mortar" / "_dolfinx_versions"}
+
+
+def test_generations_offer_the_same_functions():
+    # _dolfinx.py calls whatever the running version's module offers: every generation
+    # must offer the reference's (0.9's) functions with the same parameters
+    assert v0_5.__all__ == v0_9.__all__
+    for name in v0_9.__all__:
+        ref = inspect.signature(getattr(v0_9, name))
+        assert inspect.signature(getattr(v0_5, name)) == ref, name
+
+
+def test_the_running_version_is_selected():
+    major, minor = (int(p) for p in dx.VERSION.split(".")[:2])
+    assert dx.api.__name__.endswith(GENERATIONS[(major, minor)])
+
+
+@pytest.mark.parametrize("version", ["0.10.0", "0.8.0", "1.0", "main"])
+def test_untested_versions_are_refused_by_name(version):
+    with pytest.raises(ImportError, match=rf"DOLFINx 0\.5 or 0\.9, not {re.escape(version)}:"
+                                          r" install .*python3-dolfinx-real"):
+        select(version)
+
+
+def _dolfinx_uses(path) -> list[str]:
+    """The DOLFINx imports of one file other than ``import dolfinx`` read only for
+    ``dolfinx.__version__``, and module names ``"dolfinx.…"`` given as strings (importlib,
+    pytest.importorskip)."""
+    tree = ast.parse(path.read_text(), str(path))
+    found, plain = [], []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and (node.module or "").split(".")[0] == "dolfinx":
+            found.append(f"line {node.lineno}: from {node.module} import ...")
+        elif isinstance(node, ast.Import):
+            for alias in node.names:
+                if alias.name.split(".")[0] == "dolfinx":
+                    (plain if alias.name == "dolfinx" and not alias.asname else found).append(
+                        f"line {node.lineno}: import {alias.name}")
+        elif isinstance(node, ast.Constant) and isinstance(node.value, str) \
+                and re.fullmatch(r"dolfinx(\.\w+)+", node.value):
+            found.append(f"line {node.lineno}: {node.value!r}")
+    if plain:
+        attrs = {n.attr for n in ast.walk(tree) if isinstance(n, ast.Attribute)
+                 and isinstance(n.value, ast.Name) and n.value.id == "dolfinx"}
+        if attrs - {"__version__"}:
+            found += plain
+    return found
+
+
+def test_only_the_layer_uses_dolfinx():
+    # demos/ are user scripts (they may branch on the DOLFINx API themselves)
+    offenders = {}
+    for folder in ("fenicsx_mortar", "meshes", "tests", "benchmarks"):
+        for path in sorted((ROOT / folder).rglob("*.py")):
+            if path in LAYER or path.parent in LAYER:
+                continue
+            uses = _dolfinx_uses(path)
+            if uses:
+                offenders[str(path.relative_to(ROOT))] = uses
+    assert not offenders, f"DOLFINx used outside fenicsx_mortar/_dolfinx*: {offenders}"
+
+
+def test_the_scan_sees_what_it_must(tmp_path):
+    # the scan above finds nothing in the tree: make sure it would
+    f = tmp_path / "x.py"
+    f.write_text("import dolfinx\nfrom dolfinx.io import gmshio\nimport dolfinx.fem as fem\n"
+                 "pytest.importorskip('dolfinx.io.gmshio')\nV = dolfinx.fem.functionspace\n")
+    lines = sorted(int(u.split(":")[0].split()[1]) for u in _dolfinx_uses(f))
+    assert lines == [1, 2, 3, 4]          # line 1 for dolfinx.fem on line 5
+    f.write_text("import dolfinx\nprint(dolfinx.__version__)\n")
+    assert _dolfinx_uses(f) == []
+
+
+EMPTY_RANK = textwrap.dedent("""
+    import numpy as np, ufl
+    from mpi4py import MPI
+    from petsc4py import PETSc
+    from fenicsx_mortar import _dolfinx as dx
+    comm = MPI.COMM_WORLD
+    msh = dx.unit_square(comm, 1, 1)                 # two triangles: some rank gets none
+    V = dx.vector_space(msh)
+    n = dx.num_cells(msh)
+    assert comm.allreduce(int(n == 0)) >= 1, "no rank without cells: nothing tested"
+    assert dx.cell_nodes(msh).shape == (n, 3) and dx.cell_dofs(V).shape == (n, 3)
+    assert dx.input_node_numbers(msh).dtype == np.int64
+    u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+    a = dx.form(ufl.inner(ufl.grad(u), ufl.grad(v)) * ufl.dx)
+    A = dx.matrix_with_couplings(a, V, [np.arange(4)])   # every node with every node
+    nz = A.getInfo(PETSc.Mat.InfoType.GLOBAL_SUM)["nz_used"]
+    if comm.rank == 0:
+        print("OK", int(nz))
+""")
+
+
+@pytest.mark.mpi
+def test_a_rank_without_cells_builds_its_part(tmp_path):
+    # more ranks than cells: the ranks without cells or dofs take part in every collective
+    # call (before: the reshape of an empty dofmap and the search in an empty
+    # local-to-global map raised there, and the other ranks waited for ever)
+    script = tmp_path / "empty_rank.py"
+    script.write_text(EMPTY_RANK)
+    proc = run_python([sys.executable, str(script)], ranks=3, timeout=300)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-3000:]
+    # 4 nodes x 2 components, all coupled: 64 entries (the bulk alone: 56)
+    assert proc.stdout.split() == ["OK", "64"]
