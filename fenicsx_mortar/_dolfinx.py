@@ -355,7 +355,7 @@ def quadrature_expression(expr, msh: Mesh, degree: int) -> fem.Expression:
     """Compile a scalar UFL expression for evaluation at the Gauss points of ``degree`` on
     the mesh's cell type (``.eval(cells)`` → (n_cells, n_points))."""
     import basix
-    cell = basix.cell.string_to_type(msh.topology.cell_type.name)
+    cell = getattr(basix.CellType, msh.topology.cell_type.name)
     points, _ = basix.make_quadrature(cell, degree)
     return fem.Expression(expr, points)
 

@@ -127,12 +127,22 @@ def _check_areas(model, cells: np.ndarray, where: str) -> None:
                          f"({c[0]:.6g}, {c[1]:.6g}))")
 
 
+def _gmsh_initialize(gmsh) -> None:
+    """gmsh.initialize keeping our SIGINT handler: gmsh >= 4.11 resets SIGINT to the default
+    (an interrupt while meshing would kill the process without a word)."""
+    import inspect
+    if "interruptible" in inspect.signature(gmsh.initialize).parameters:
+        gmsh.initialize(interruptible=False)
+    else:
+        gmsh.initialize()
+
+
 def build_domain(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD) -> Domain:
     """Mesh the scene on rank 0, distribute it, and check every group the scene names."""
     import gmsh
     groups, error = None, None
     if comm.rank == 0:
-        gmsh.initialize()
+        _gmsh_initialize(gmsh)
         gmsh.option.setNumber("General.Terminal", 0)
         try:
             groups = _build_model(scene)

@@ -314,14 +314,20 @@ def _step_line(k: int, t: float, res: StepResult, cuts: int) -> str:
     return f"  step {k:3d}  t = {t:<10.6g} Newton {res.iterations:3d}{aug}{cut}  |R| = {r:.2e}"
 
 
+def _on_terminal() -> bool:
+    # Open MPI 5 gives every rank's stdout a pty of its own: not the user's terminal, and the
+    # half-written status line would end up in front of the rank's last stderr line
+    return sys.stdout.isatty() and MPI.COMM_WORLD.size == 1
+
+
 def _log_line(s: str) -> None:
     # on a terminal, first wipe the live progress line
-    print(("\r\033[K" if sys.stdout.isatty() else "") + s, flush=True)
+    print(("\r\033[K" if _on_terminal() else "") + s, flush=True)
 
 
 def _progress_printer() -> Callable[[str], None]:
     """A live status line on a terminal; nothing when output goes to a file."""
-    if not sys.stdout.isatty():
+    if not _on_terminal():
         return lambda s: None
 
     def show(s: str) -> None:

@@ -55,6 +55,10 @@ SCENES = {
         ("times = [0.25, 0.5, 0.75, 1.0, 1.05, 1.1, 1.15, 1.2, 1.25, 1.3, 1.35, 1.4, 1.45, "
          "1.5, 1.55, 1.6, 1.65, 1.7, 1.75, 1.8, 1.85, 1.9, 1.95, 2.0]",
          "times = [0.5, 1.0, 1.05, 1.1]"))),
+    # two-sided smoothing: Hermite master and a Hermite curve through the slave nodes; the
+    # slave curve couples a slave node to its neighbours, which straddle the rank boundary
+    "shrink_fit_two_sided": ("shrink_fit", (
+        ('smoothing = "none"', 'smoothing = "hermite"\nslave_smoothing = "hermite"'),)),
 }
 # the same contact scenes with the Uzawa ALM (the demo scenes use Lagrange multipliers)
 _ALM = ('enforcement = { type = "lagrange" }', 'enforcement = { type = "alm" }')
@@ -79,6 +83,7 @@ CASES = [
     ("block_on_slab", 3, 1e-8),
     ("half_rings", 2, 1e-8),
     ("half_rings", 3, 1e-8),
+    ("shrink_fit_two_sided", 2, 1e-8),
     ("patch_test_alm", 2, 1e-8),
     ("hertz_alm", 2, 1e-8),
     ("block_on_slab_alm", 2, 1e-8),
