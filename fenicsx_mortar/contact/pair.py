@@ -89,7 +89,10 @@ class ContactPair:
                                    slave_smoothing=slave_smoothing)
         self.friction = FRICTION_LAWS[friction](mu, self.enforcement.epsilon0, s.n)
         self.smoothing = smoothing
-        self.radius = search_radius or 2.0 * h
+        # two of the slave segment's own lengths: the mean would search a graded mesh's
+        # refined zone with the coarse part's reach (Hertz a/10: 15 h_c, half the LU's work
+        # in explicit zeros of the couplings' pattern)
+        self.radius = search_radius or 2.0 * s.lengths()
         self.dofs = np.concatenate([s.dofs.ravel(), m.dofs.ravel()])
         # the master curve: rebuilt from the converged nodes at each load step (the B-spline
         # freezes its parametrization there, docs/design.md §6), moved with the nodes in between
@@ -259,7 +262,10 @@ class ContactPair:
         """For slave node j (list index): the global dofs its terms can depend on (see
         :meth:`couplings`)."""
         s, m = self.slave, self.master
-        ps, pm = candidate_pairs(s.X, s.seg, m.X, m.seg, 3.0 * self.radius)
+        # three of the finest segment's radius: the coarse far part of a graded slave would
+        # otherwise preallocate dense blocks to half the master (Hertz a/20: 460k stored
+        # entries against 297k); couplings beyond it are inserted when they appear
+        ps, pm = candidate_pairs(s.X, s.seg, m.X, m.seg, 3.0 * np.min(self.radius))
         curve = self._curve
         stencil = curve.stencil(pm) if len(pm) else np.zeros((0, curve.stencil_size),
                                                              dtype=np.int64)

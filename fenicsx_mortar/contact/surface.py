@@ -62,10 +62,13 @@ class Surface:
             s[b] = s[a] + np.hypot(*(x[b] - x[a]))
         return s
 
+    def lengths(self) -> np.ndarray:
+        """Segment lengths in the reference configuration."""
+        return np.linalg.norm(self.X[self.seg[:, 1]] - self.X[self.seg[:, 0]], axis=1)
+
     def mean_length(self) -> float:
         """Mean segment length in the reference configuration."""
-        return float(np.mean(np.linalg.norm(self.X[self.seg[:, 1]] - self.X[self.seg[:, 0]],
-                                            axis=1)))
+        return float(np.mean(self.lengths()))
 
 
 def build_surface(V, facet_tags, values: int | Sequence[int], name: str,

@@ -7,11 +7,13 @@ from fenicsx_mortar.contact.search import candidate_pairs
 
 
 def _brute_force(xs, ss, xm, sm, radius):
-    lo_s = np.minimum(xs[ss[:, 0]], xs[ss[:, 1]]) - radius
-    hi_s = np.maximum(xs[ss[:, 0]], xs[ss[:, 1]]) + radius
-    lo_m = np.minimum(xm[sm[:, 0]], xm[sm[:, 1]]) - radius
-    hi_m = np.maximum(xm[sm[:, 0]], xm[sm[:, 1]]) + radius
-    ok = np.all((lo_s[:, None] <= hi_m[None]) & (lo_m[None] <= hi_s[:, None]), axis=2)
+    # radius: one, or one per slave segment (both boxes of a pair inflated by it)
+    r = np.broadcast_to(np.asarray(radius, dtype=float), (len(ss),))[:, None, None]
+    lo_s = np.minimum(xs[ss[:, 0]], xs[ss[:, 1]])[:, None]
+    hi_s = np.maximum(xs[ss[:, 0]], xs[ss[:, 1]])[:, None]
+    lo_m = np.minimum(xm[sm[:, 0]], xm[sm[:, 1]])[None]
+    hi_m = np.maximum(xm[sm[:, 0]], xm[sm[:, 1]])[None]
+    ok = np.all((lo_s - 2 * r <= hi_m) & (lo_m <= hi_s + 2 * r), axis=2)
     return set(zip(*np.nonzero(ok)))
 
 
@@ -27,6 +29,13 @@ def test_matches_brute_force_on_random_chains(seed):
         assert len(got) == len(ps)                       # no duplicates
         assert got == _brute_force(xs, ss, xm, sm, radius)
         assert np.all(np.diff(ps) >= 0)                  # sorted by slave segment
+    # one radius per slave segment (a graded mesh: twice each segment's own length)
+    radius = 2.0 * np.linalg.norm(xs[ss[:, 1]] - xs[ss[:, 0]], axis=1)
+    for moved in (0.0, 0.01, 1.0):           # the kept superset, then a new search
+        x = xs + moved * rng.normal(size=xs.shape)
+        ps, pm = candidate_pairs(x, ss, xm, sm, radius)
+        got = set(zip(ps.tolist(), pm.tolist()))
+        assert len(got) == len(ps) and got == _brute_force(x, ss, xm, sm, radius)
 
 
 def test_hand_case():
