@@ -3,8 +3,9 @@
 A pair is a candidate when the axis-aligned bounding boxes of the two segments, each
 inflated by ``radius``, overlap: |c_s − c_m| ≤ h_s + h_m + 2·radius on both axes (c box
 centre, h half extent). ``radius`` is one number or one per slave segment (r_s: then the
-pair's test uses the slave segment's own), so that a graded slave mesh searches locally. A k-d tree over the box centres finds every pair whose centres are
-within the Chebyshev distance 2·radius + max h_s + max h_m (a necessary condition), then the
+pair's test uses the slave segment's own), so that a graded slave mesh searches locally.
+A k-d tree over the box centres finds every pair whose centres are within the Chebyshev
+distance 2·max radius + max h_s + max h_m (a necessary condition), then the
 exact test above is applied vectorized and the pairs are sorted through one integer key.
 Cost ~ N log N + (number of candidates) as long as segment lengths are comparable; one very
 long segment widens the tree query for all. While the nodes move little (Newton iterations)
