@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import gmsh
 
-from . import _checks
+from . import _checks, _gmsh
 
 
 def build(model, *, cell: str = "quadrilateral", x0: float = 0.0, y0: float = 0.0,
@@ -39,11 +39,9 @@ def build(model, *, cell: str = "quadrilateral", x0: float = 0.0, y0: float = 0.
     if cell == "quadrilateral":
         mesh.setRecombine(2, surface)
 
-    _physical(model, 2, 1, [surface], "block")
-    for tag, (name, curve) in enumerate(zip(("bottom", "right", "top", "left"), sides), start=2):
-        _physical(model, 1, tag, [curve], name)
-    mesh.generate(2)
-    _check_cells(model, cell)
+    _gmsh.name_groups(model, [(2, surface, "block")]
+                      + [(1, c, n) for c, n in zip(sides, ("bottom", "right", "top", "left"))])
+    _gmsh.generate(model, cell)
 
 
 def cells(*, cell: str = "quadrilateral", x0: float = 0.0, y0: float = 0.0,
@@ -56,20 +54,8 @@ def cells(*, cell: str = "quadrilateral", x0: float = 0.0, y0: float = 0.0,
     return per_quad * nx * ny
 
 
-def _physical(model, dim: int, tag: int, entities: list[int], name: str) -> None:
-    model.addPhysicalGroup(dim, entities, tag)
-    model.setPhysicalName(dim, tag, name)
-
-
 def _set_options() -> None:
     # Options are global to the gmsh session: reset those a previous build may have changed.
     gmsh.option.setNumber("Mesh.ElementOrder", 1)
     gmsh.option.setNumber("Mesh.RecombineAll", 0)
     gmsh.option.setNumber("Mesh.SubdivisionAlgorithm", 0)
-
-
-def _check_cells(model, cell: str) -> None:
-    wanted = 3 if cell == "quadrilateral" else 2  # gmsh element types: 3 = quad4, 2 = tri3
-    types = list(model.mesh.getElementTypes(2))
-    if types != [wanted]:
-        raise RuntimeError(f"expected only gmsh element type {wanted} for {cell!r}, got {types}")

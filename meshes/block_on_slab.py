@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import gmsh
 
-from . import _checks
+from . import _checks, _gmsh
 
 _SIDES = ("bottom", "right", "top", "left")
 
@@ -40,13 +40,8 @@ def build(model, *, cell: str = "quadrilateral", block_nx: int = 10, block_ny: i
     groups = [(2, block[0], "block"), (2, slab[0], "slab")]
     for body, (_, curves) in (("block", block), ("slab", slab)):
         groups += [(1, c, f"{body}_{side}") for c, side in zip(curves, _SIDES)]
-    for tag, (dim, entity, name) in enumerate(groups, start=1):
-        model.addPhysicalGroup(dim, [entity], tag)
-        model.setPhysicalName(dim, tag, name)
-    model.mesh.generate(2)
-    wanted = 3 if cell == "quadrilateral" else 2  # gmsh element types: 3 = quad4, 2 = tri3
-    if list(model.mesh.getElementTypes(2)) != [wanted]:
-        raise RuntimeError(f"mesh is not all {cell}: {model.mesh.getElementTypes(2)}")
+    _gmsh.name_groups(model, groups)
+    _gmsh.generate(model, cell)
 
 
 def cells(*, cell: str = "quadrilateral", block_nx: int = 10, block_ny: int = 5,

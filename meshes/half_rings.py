@@ -5,7 +5,7 @@ import math
 
 import gmsh
 
-from . import _checks
+from . import _checks, _gmsh
 
 
 def build(model, *, cell: str = "quadrilateral", fixed_nr: int = 4, fixed_nc: int = 32,
@@ -46,13 +46,8 @@ def build(model, *, cell: str = "quadrilateral", fixed_nr: int = 4, fixed_nc: in
               (1, f_inner, "fixed_inner"), (1, f_outer, "fixed_outer"), (1, f_ends, "fixed_ends"),
               (1, m_outer, "moving_outer"), (1, m_inner, "moving_inner"),
               (1, m_ends, "moving_ends")]
-    for tag, (dim, entities, name) in enumerate(groups, start=1):
-        model.addPhysicalGroup(dim, entities, tag)
-        model.setPhysicalName(dim, tag, name)
-    model.mesh.generate(2)
-    wanted = 3 if cell == "quadrilateral" else 2  # gmsh element types: 3 = quad4, 2 = tri3
-    if list(model.mesh.getElementTypes(2)) != [wanted]:
-        raise RuntimeError(f"mesh is not all {cell}: {model.mesh.getElementTypes(2)}")
+    _gmsh.name_groups(model, groups)
+    _gmsh.generate(model, cell)
 
 
 def cells(*, cell: str = "quadrilateral", fixed_nr: int = 4, fixed_nc: int = 32,

@@ -5,7 +5,7 @@ import math
 
 import gmsh
 
-from . import _checks
+from . import _checks, _gmsh
 
 
 def build(model, *, cell: str = "quadrilateral", h_contact: float = 0.05, h_far: float = 0.1,
@@ -86,16 +86,13 @@ def build(model, *, cell: str = "quadrilateral", h_contact: float = 0.05, h_far:
               (1, disk_top, "disk_top"), (1, b_curves[3:5], "block_top"),
               (1, b_curves[0:2], "block_bottom"), (1, [b_curves[5]], "block_left"),
               (1, [b_curves[2]], "block_right")]
-    for tag, (dim, entities, name) in enumerate(groups, start=1):
-        model.addPhysicalGroup(dim, entities, tag)
-        model.setPhysicalName(dim, tag, name)
-    wanted = 3 if cell == "quadrilateral" else 2  # gmsh element types: 3 = quad4, 2 = tri3
+    _gmsh.name_groups(model, groups)
     # gmsh 4.8's full-quad recombination leaves a triangle for a few sizes (seen: h_contact
     # = a/10 for a soft disk on a 4x stiffer block): mesh again with the field's sizes
     # 0.1 % smaller, which moves every node slightly and recombines cleanly
     for attempt in range(4):
         model.mesh.generate(2)
-        if list(model.mesh.getElementTypes(2)) == [wanted]:
+        if _gmsh.is_all(model, cell):
             return
         model.mesh.clear()
         shrink = 1.0 - 1e-3 * (attempt + 1)

@@ -5,7 +5,7 @@ import math
 
 import gmsh
 
-from . import _checks
+from . import _checks, _gmsh
 
 _CX, _CY, _R = 1.2, 5.02, 1.0   # half-disk centre and radius: lowest tool point y = 4.02
 _H = 1.0                        # height of the tool's rectangle [0.2, 2.2] x [5.02, 6.02]
@@ -113,13 +113,8 @@ def build(model, *, cell: str = "quadrilateral", nx: int = 70, ny: int = 10,
     groups += [(1, [c], f"substrate_{side}")
                for c, side in zip(s_curves, ("bottom", "right", "top", "left"))]
     groups += [(1, arcs, "tool_arc"), (1, sides, "tool_sides"), (1, [top], "tool_top")]
-    for tag, (dim, entities, name) in enumerate(groups, start=1):
-        model.addPhysicalGroup(dim, entities, tag)
-        model.setPhysicalName(dim, tag, name)
-    mesh.generate(2)
-    wanted = 3 if cell == "quadrilateral" else 2  # gmsh element types: 3 = quad4, 2 = tri3
-    if list(mesh.getElementTypes(2)) != [wanted]:
-        raise RuntimeError(f"mesh is not all {cell}: {mesh.getElementTypes(2)}")
+    _gmsh.name_groups(model, groups)
+    _gmsh.generate(model, cell)
 
 
 def cells(*, cell: str = "quadrilateral", nx: int = 70, ny: int = 10, n_arc: int = 18) -> int:

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import gmsh
 
-from . import _checks
+from . import _checks, _gmsh
 
 
 def build(model, *, cell: str = "quadrilateral", lower_nx: int = 16, lower_ny: int = 8,
@@ -72,11 +72,8 @@ def build(model, *, cell: str = "quadrilateral", lower_nx: int = 16, lower_ny: i
         "lower_top_left", "lower_left"))]
     groups += [(1, c, n) for c, n in zip(upper_curves, (
         "upper_bottom", "upper_right", "upper_top", "upper_left"))]
-    for tag, (dim, entity, name) in enumerate(groups, start=1):
-        model.addPhysicalGroup(dim, [entity], tag)
-        model.setPhysicalName(dim, tag, name)
-    mesh.generate(2)
-    _check_cells(model, cell)
+    _gmsh.name_groups(model, groups)
+    _gmsh.generate(model, cell)
 
 
 def cells(*, cell: str = "quadrilateral", lower_nx: int = 16, lower_ny: int = 8,
@@ -96,10 +93,3 @@ def _set_options() -> None:
     gmsh.option.setNumber("Mesh.ElementOrder", 1)
     gmsh.option.setNumber("Mesh.RecombineAll", 0)
     gmsh.option.setNumber("Mesh.SubdivisionAlgorithm", 0)
-
-
-def _check_cells(model, cell: str) -> None:
-    wanted = 3 if cell == "quadrilateral" else 2  # gmsh element types: 3 = quad4, 2 = tri3
-    types = list(model.mesh.getElementTypes(2))
-    if types != [wanted]:
-        raise RuntimeError(f"expected only gmsh element type {wanted} for {cell!r}, got {types}")

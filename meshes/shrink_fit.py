@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import gmsh
 
-from . import _checks
+from . import _checks, _gmsh
 
 
 def build(model, *, cell: str = "quadrilateral", a: float = 0.5, b: float = 1.0,
@@ -58,13 +58,8 @@ def build(model, *, cell: str = "quadrilateral", a: float = 0.5, b: float = 1.0,
               (1, i_x0, "inner_x0"), (1, i_y0, "inner_y0"),
               (1, o_x0, "outer_x0"), (1, o_y0, "outer_y0"),
               (1, o_surface, "outer_surface"), (1, i_bore, "inner_bore")]
-    for tag, (dim, entity, name) in enumerate(groups, start=1):
-        model.addPhysicalGroup(dim, [entity], tag)
-        model.setPhysicalName(dim, tag, name)
-    model.mesh.generate(2)
-    wanted = 3 if cell == "quadrilateral" else 2  # gmsh element types: 3 = quad4, 2 = tri3
-    if list(model.mesh.getElementTypes(2)) != [wanted]:
-        raise RuntimeError(f"mesh is not all {cell}: {model.mesh.getElementTypes(2)}")
+    _gmsh.name_groups(model, groups)
+    _gmsh.generate(model, cell)
 
 
 def cells(*, cell: str = "quadrilateral", a: float = 0.5, b: float = 1.0, c: float = 1.5,

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import gmsh
 
-from . import _checks
+from . import _checks, _gmsh
 
 _SIDES = ("bottom", "right", "top", "left")
 
@@ -53,13 +53,8 @@ def build(model, *, cell: str = "quadrilateral",
     groups = [(2, lower[0], "lower"), (2, upper[0], "upper")]
     for body, (_, curves) in (("lower", lower), ("upper", upper)):
         groups += [(1, c, f"{body}_{side}") for c, side in zip(curves, _SIDES)]
-    for tag, (dim, entity, name) in enumerate(groups, start=1):
-        model.addPhysicalGroup(dim, [entity], tag)
-        model.setPhysicalName(dim, tag, name)
-    model.mesh.generate(2)
-    wanted = 3 if cell == "quadrilateral" else 2
-    if list(model.mesh.getElementTypes(2)) != [wanted]:
-        raise RuntimeError(f"mesh is not all {cell}: {model.mesh.getElementTypes(2)}")
+    _gmsh.name_groups(model, groups)
+    _gmsh.generate(model, cell)
 
 
 def cells(*, cell: str = "quadrilateral",
