@@ -109,22 +109,29 @@ def polygon(n: int, rotation: float = 0.1):
     return x, seg
 
 
-def slave_points(rng):
-    theta = rng.uniform(0.0, 2 * np.pi, N_POINTS)
+def slave_points(rng, start: float = 0.0, span: float = 2 * np.pi):
+    """N_POINTS points at ±D from the circle (alternately outside and inside) at random
+    angles in [start, start + span], and their exact gaps."""
+    theta = rng.uniform(start, start + span, N_POINTS)
     sign = np.where(np.arange(N_POINTS) % 2 == 0, 1.0, -1.0)  # outside / inside
     r = R + sign * D
     return np.c_[r * np.cos(theta), r * np.sin(theta)], sign * D
 
 
-def gap_errors(smoothing: str, n: int, pts, exact):
-    x, seg = polygon(n)
-    curve = make_curve(smoothing, x, seg)
+def _gap_errors(curve, pts, exact, what: str) -> tuple[np.ndarray, np.ndarray]:
+    """|g − exact| of every point's closest-point projection onto ``curve``, and the
+    segment each projects onto."""
     cp = closest_point(curve, pts)
     if not cp.ok.all():
-        raise RuntimeError(f"{smoothing}, n = {n}: {np.count_nonzero(~cp.ok)} projections failed")
+        raise RuntimeError(f"{what}: {np.count_nonzero(~cp.ok)} projections failed")
     P = curve.split_points(curve.local_points(cp.seg))
     g, _ = curve.gap(cp.seg, (pts[:, 0], pts[:, 1]), P)
-    return np.abs(np.asarray(g) - exact)
+    return np.abs(np.asarray(g) - exact), cp.seg
+
+
+def gap_errors(smoothing: str, n: int, pts, exact):
+    x, seg = polygon(n)
+    return _gap_errors(make_curve(smoothing, x, seg), pts, exact, f"{smoothing}, n = {n}")[0]
 
 
 def open_arc(n: int, start: float = 0.3, span: float = 0.5 * np.pi):
@@ -142,18 +149,10 @@ def open_arc_errors(smoothing: str, n: int, rng, start: float = 0.3,
     the interior segments) on :func:`open_arc`: the slave points at ±D from the circle at
     random angles within the arc."""
     x, seg = open_arc(n, start, span)
-    theta = rng.uniform(start, start + span, N_POINTS)
-    sign = np.where(np.arange(N_POINTS) % 2 == 0, 1.0, -1.0)
-    r = R + sign * D
-    pts = np.c_[r * np.cos(theta), r * np.sin(theta)]
-    curve = make_curve(smoothing, x, seg)
-    cp = closest_point(curve, pts)
-    if not cp.ok.all():
-        raise RuntimeError(f"{smoothing}, open arc n = {n}: projections failed")
-    P = curve.split_points(curve.local_points(cp.seg))
-    g, _ = curve.gap(cp.seg, (pts[:, 0], pts[:, 1]), P)
-    err = np.abs(np.asarray(g) - sign * D)
-    end = (cp.seg == 0) | (cp.seg == n - 1)
+    pts, exact = slave_points(rng, start, span)
+    err, on = _gap_errors(make_curve(smoothing, x, seg), pts, exact,
+                          f"{smoothing}, open arc n = {n}")
+    end = (on == 0) | (on == n - 1)
     return float(err[end].max()), float(err[~end].max())
 
 
