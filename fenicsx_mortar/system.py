@@ -48,8 +48,23 @@ class DisplacementSystem:
         self.u.x.scatter_forward()
 
     def pull(self, x) -> None:
-        """u → x."""
-        dx.function_vector(self.u).copy(x)
+        """u and the pairs' multipliers → x."""
+        x.array = self._extended(dx.function_vector(self.u).array_r,
+                                 lambda p: p.multipliers())
+
+    def _extended(self, u_part, of_pair) -> np.ndarray:
+        """This rank's part of an extended vector: the owned displacement entries of
+        ``u_part``, then, per pair with unknowns, ``of_pair(pair)`` (n_slave, 2) at the
+        slave nodes this rank owns."""
+        arr = np.empty(2 * self._owned_blocks)
+        arr[: self.n_u] = u_part[: self.n_u]
+        offset = self.n_u
+        for p, own in zip(self.pairs, self._owned):
+            if not p.unknowns:
+                continue
+            arr[offset: offset + 2 * len(own)] = of_pair(p)[own].ravel()
+            offset += 2 * len(own)
+        return arr
 
     def assemble_residual(self, x, b, add_contact) -> None:
         dx.assemble_residual(b, self.residual_form, self.jacobian_form, self.bcs, x,
@@ -198,15 +213,7 @@ class MultiplierSystem(DisplacementSystem):
         b_u = self.b_u
         dx.assemble_residual(b_u, self.residual_form, self.jacobian_form, self.bcs,
                              dx.function_vector(self.u), extra=add_contact)
-        arr = np.empty(2 * self._owned_blocks)
-        arr[: self.n_u] = b_u.array_r[: self.n_u]
-        offset = self.n_u
-        for p, own in zip(self.pairs, self._owned):
-            if not p.unknowns:
-                continue
-            arr[offset: offset + 2 * len(own)] = p.multiplier_residual()[own].ravel()
-            offset += 2 * len(own)
-        b.array = arr
+        b.array = self._extended(b_u.array_r, lambda p: p.multiplier_residual())
 
     def unconstrained(self):
         return self.b_u.duplicate()
