@@ -48,23 +48,8 @@ class DisplacementSystem:
         self.u.x.scatter_forward()
 
     def pull(self, x) -> None:
-        """u and the pairs' multipliers → x."""
-        x.array = self._extended(dx.function_vector(self.u).array_r,
-                                 lambda p: p.multipliers())
-
-    def _extended(self, u_part, of_pair) -> np.ndarray:
-        """This rank's part of an extended vector: the owned displacement entries of
-        ``u_part``, then, per pair with unknowns, ``of_pair(pair)`` (n_slave, 2) at the
-        slave nodes this rank owns."""
-        arr = np.empty(2 * self._owned_blocks)
-        arr[: self.n_u] = u_part[: self.n_u]
-        offset = self.n_u
-        for p, own in zip(self.pairs, self._owned):
-            if not p.unknowns:
-                continue
-            arr[offset: offset + 2 * len(own)] = of_pair(p)[own].ravel()
-            offset += 2 * len(own)
-        return arr
+        """u → x."""
+        dx.function_vector(self.u).copy(x)
 
     def assemble_residual(self, x, b, add_contact) -> None:
         dx.assemble_residual(b, self.residual_form, self.jacobian_form, self.bcs, x,
@@ -199,15 +184,22 @@ class MultiplierSystem(DisplacementSystem):
 
     def pull(self, x) -> None:
         """u and the pairs' multipliers → x."""
+        x.array = self._extended(dx.function_vector(self.u).array_r,
+                                 lambda p: p.multipliers())
+
+    def _extended(self, u_part, of_pair) -> np.ndarray:
+        """This rank's part of an extended vector: the owned displacement entries of
+        ``u_part``, then, per pair with unknowns, ``of_pair(pair)`` (n_slave, 2) at the
+        slave nodes this rank owns."""
         arr = np.empty(2 * self._owned_blocks)
-        arr[: self.n_u] = dx.function_vector(self.u).array_r[: self.n_u]
+        arr[: self.n_u] = u_part[: self.n_u]
         offset = self.n_u
         for p, own in zip(self.pairs, self._owned):
             if not p.unknowns:
                 continue
-            arr[offset: offset + 2 * len(own)] = p.multipliers()[own].ravel()
+            arr[offset: offset + 2 * len(own)] = of_pair(p)[own].ravel()
             offset += 2 * len(own)
-        x.array = arr
+        return arr
 
     def assemble_residual(self, x, b, add_contact) -> None:
         b_u = self.b_u
