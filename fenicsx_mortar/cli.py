@@ -120,14 +120,22 @@ def _abort_interrupted(comm, e: Exception) -> None:
     if comm.rank != 0:
         import time
         time.sleep(0.5)
-    print(f"fenicsx-mortar: error: {e}", file=sys.stderr, flush=True)
+    _say(f"fenicsx-mortar: error: {e}")
     comm.Abort(1)
+
+
+def _say(line: str) -> None:
+    # one write: stderr is write-through, and print() writes the text and its newline
+    # separately; under Open MPI 5 a run once showed the newline alone on stderr
+    # (tests/hostile mpi_disk_full)
+    sys.stderr.write(line + "\n")
+    sys.stderr.flush()
 
 
 def _error(comm, e: Exception) -> None:
     if comm.rank == 0:
         text = " ".join(str(e).split("\n"))
-        print(f"fenicsx-mortar: error: {text}", file=sys.stderr, flush=True)
+        _say(f"fenicsx-mortar: error: {text}")
 
 
 class _Interrupt:
