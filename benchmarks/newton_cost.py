@@ -1,10 +1,11 @@
 """What a load step costs in Newton iterations and seconds, by enforcement (issue: one
 Newton loop for contact). Prints one table per benchmark:
 
-* B2 Hertz (docs/benchmarks.md B2) at h_c = a/5, a/10, a/20 on the graded mesh of the
-  reference set-up (h_c within r ≤ 0.08 of the contact point, growing linearly to 0.1 at
-  r = 0.6), ONE load step: Lagrange multipliers (semi-smooth Newton) with the dual and
-  the standard basis, against the Uzawa ALM and penalty ε = E/h;
+* B2 Hertz (docs/benchmarks.md B2) at h_c = a/5, a/8, a/10, a/20 on the graded mesh of
+  the reference set-up (h_c within r ≤ 0.08 of the contact point, growing linearly to 0.1
+  at r = 0.6), ONE load step: Lagrange multipliers (semi-smooth Newton) with the dual and
+  the standard basis — the dual one also with a relative stopping rule — against the
+  Uzawa ALM and penalty ε = E/h;
 * B3 half-rings with μ = 0.3 and B4 ironing with μ = 0.3, the whole load path, with
   multipliers (and the Uzawa ALM with ``--compare``).
 
@@ -13,9 +14,11 @@ residual history of the last Newton solve (its last three ratios r_{k+1}/r_k² s
 quadratic tail), wall and CPU seconds of the solve (mesh and JIT excluded) and by phase
 (bulk assembly, contact, linear solve), and for B2 the pressure metrics (p_max/p₀ − 1,
 relative L2 error on [−a, a]) and whether the nodal pressure falls monotonically over the
-last three nodes to each edge of the contact zone. All in one run, one solve at a time.
+last three nodes to each edge of the contact zone. All in one run, one solve at a time;
+the Hertz times are the fastest of ``--repeat`` identical solves.
 
     .venv/bin/python benchmarks/newton_cost.py [--only hertz rings ironing] [--compare]
+                                               [--repeat N]
 """
 from __future__ import annotations
 
@@ -34,12 +37,18 @@ from fenicsx_mortar import Friction, load_scene, solve  # noqa: E402
 from fenicsx_mortar import run as fm_run  # noqa: E402
 
 SCENES = ROOT / "demos" / "scenes"
-#: (label, enforcement type, basis, ε factor × E/h or None)
-HERTZ_VARIANTS = [("lagrange, dual", "lagrange", "dual", None),
-                  ("lagrange, standard", "lagrange", "standard", None),
-                  ("Uzawa ALM", "alm", None, None),
-                  ("penalty E/h", "penalty", None, 1.0)]
-LEVELS = {"a/5": 5, "a/10": 10, "a/20": 20}
+#: (label, enforcement type, basis, ε factor × E/h or None, (atol, rtol) or None: the
+#: scene's). "relative stop": a relative residual decrease of 1e-4 alone decides (atol
+#: 2e-4 ≈ 1e-3 of the first residual never binds first) — the rule of contact codes that
+#: stop at a relative residual, to show what our tighter default (atol 1e-9 and rtol 1e-8)
+#: costs in iterations and what it changes in the pressures
+HERTZ_VARIANTS = [("lagrange, dual", "lagrange", "dual", None, None),
+                  ("lagrange, dual, relative stop", "lagrange", "dual", None, (2e-4, 1e-4)),
+                  ("lagrange, standard", "lagrange", "standard", None, None),
+                  ("Uzawa ALM", "alm", None, None, None),
+                  ("penalty E/h", "penalty", None, 1.0, None)]
+#: a/8: where our graded mesh has the reference peer's dof count at a/10 (≈ 4.3k)
+LEVELS = {"a/5": 5, "a/8": 8, "a/10": 10, "a/20": 20}
 PHASES = ("bulk_assembly", "contact", "linear_solve")
 
 
@@ -95,7 +104,8 @@ def monotone_edges(x: np.ndarray, p: np.ndarray) -> bool:
     return bool(np.all(np.diff(left) > 0) and np.all(np.diff(right) < 0))
 
 
-def hertz_scene(level: int, enforcement: str, basis: str | None, factor: float | None):
+def hertz_scene(level: int, enforcement: str, basis: str | None, factor: float | None,
+                tolerances: tuple[float, float] | None = None):
     scene = load_scene(SCENES / "hertz.toml")
     scene.mesh.params = {"h_contact": HERTZ_A / level, "h_far": 0.1, "refine_radius": 0.08,
                          "grade_to": 0.6}
@@ -104,6 +114,8 @@ def hertz_scene(level: int, enforcement: str, basis: str | None, factor: float |
     c.enforcement.type, c.basis = enforcement, basis
     if factor is not None:
         c.enforcement.epsilon = factor * 1000.0 / (HERTZ_A / level)
+    if tolerances is not None:
+        scene.solver.atol, scene.solver.rtol = tolerances
     return scene
 
 
@@ -115,14 +127,22 @@ def _phase_text(row: dict) -> str:
     return " / ".join(f"{row['phases'][k]:.2f}" for k in PHASES)
 
 
-def hertz_table() -> None:
-    print("\n== B2 Hertz, one load step, graded mesh (reference grading) ==")
+def best_of(repeat: int, make_scene) -> dict:
+    """The run with the least wall time of ``repeat`` identical solves (the solves are
+    deterministic: only the clock differs; a sub-second solve scatters by ±20 % on a shared
+    machine)."""
+    return min((run(make_scene()) for _ in range(repeat)), key=lambda r: r["wall"])
+
+
+def hertz_table(repeat: int = 3) -> None:
+    print(f"\n== B2 Hertz, one load step, graded mesh (reference grading); times: best of "
+          f"{repeat} ==")
     print("| h_c | enforcement | dofs | Newton | wall s | CPU s | bulk / contact / LU s "
           "| p_max/p0 − 1 | L2 | monotone edges | last solve's residuals | tail r_k+1/r_k² |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for label, level in LEVELS.items():
-        for name, enf, basis, factor in HERTZ_VARIANTS:
-            row = run(hertz_scene(level, enf, basis, factor))
+        for name, enf, basis, factor, tol in HERTZ_VARIANTS:
+            row = best_of(repeat, lambda: hertz_scene(level, enf, basis, factor, tol))
             res = row["result"]
             if not row["converged"]:
                 print(f"| {label} | {name} | {row['dofs']} | failed: {row['message'][:80]} |")
@@ -163,10 +183,12 @@ def main(argv=None) -> None:
                     default=("hertz", "rings", "ironing"))
     ap.add_argument("--compare", action="store_true",
                     help="B3 and B4 also with the Uzawa ALM (minutes)")
+    ap.add_argument("--repeat", type=int, default=3,
+                    help="Hertz: solves per row, the fastest reported (default 3)")
     args = ap.parse_args(argv)
     paths = ["lagrange"] + (["alm"] if args.compare else [])
     if "hertz" in args.only:
-        hertz_table()
+        hertz_table(args.repeat)
     if "rings" in args.only:
         path_table("B3 half-rings", "half_rings.toml", paths)
     if "ironing" in args.only:
