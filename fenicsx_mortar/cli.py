@@ -136,11 +136,6 @@ def _error(comm, e: Exception) -> None:
     if comm.rank == 0:
         text = " ".join(str(e).split("\n"))
         _say(f"fenicsx-mortar: error: {text}")
-    # no rank leaves before rank 0 has said it: mpirun ends the job when a rank exits
-    # non-zero, and rank 0's line can then be lost (seen under Open MPI 5, tests/hostile
-    # mpi_disk_full); bounded, for an error that did not reach every rank
-    from .parallel import wait_for_all
-    wait_for_all(comm, timeout=5.0)
 
 
 class _Interrupt:

@@ -51,20 +51,16 @@ def _portable(e: BaseException) -> Exception:
     return RunError(f"{type(e).__name__}: {e}")
 
 
-def wait_for_all(comm: MPI.Comm, timeout: float | None = None) -> bool:
+def wait_for_all(comm: MPI.Comm) -> None:
     """A barrier that keeps Python running while it waits (a non-blocking barrier polled),
     so a rank waiting for rank 0 (meshing in gmsh, say) still answers a signal: in a
     blocking MPI call no Python signal handler runs, and mpirun kills the ranks one second
-    after forwarding SIGTERM. With ``timeout`` (seconds) it gives up then: False."""
+    after forwarding SIGTERM."""
     if comm.size == 1:
-        return True
+        return
     request = comm.Ibarrier()
-    t_end = None if timeout is None else time.monotonic() + timeout
     while not request.Test():
-        if t_end is not None and time.monotonic() > t_end:
-            return False
         time.sleep(0.005)
-    return True
 
 
 def on_rank0(comm: MPI.Comm, fn: Callable[[], T], share: bool = False) -> T | None:

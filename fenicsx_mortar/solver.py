@@ -230,6 +230,7 @@ class NewtonSolver:
                 self.snes.solve(None, self.x)
             except PETSc.Error as e:  # a failed factorization, say: the step fails
                 res.reason = guards.petsc_failure(self.snes, e)
+                self._reset_linear_solver()
                 return res
             self.timings["linear_solve"] = (self.timings.get("linear_solve", 0.0)
                                             + time.perf_counter() - t0 - self._callback_time)
@@ -246,6 +247,7 @@ class NewtonSolver:
                              + ", ".join(f"{r:.3e}" for r in self.history)
                 if reason == PETSc.SNES.ConvergedReason.DIVERGED_LINEAR_SOLVE:
                     res.reason += "; " + guards.linear_failure(self.snes)
+                    self._reset_linear_solver()
                 return res
             self._set_iterate(self.x)
             if not any([h.augment() for h in self.hooks]):
@@ -254,6 +256,13 @@ class NewtonSolver:
                 return res
         res.reason = f"augmented Lagrangian: KKT not reached in {max_augmentations} augmentations"
         return res
+
+    def _reset_linear_solver(self) -> None:
+        """Forget the factorization after a failed one: PETSc would otherwise go on with
+        MUMPS's failed instance, and every later attempt (a cut step's) fails at once with
+        INFOG(1) = -3 (B3 with a finer master: a singular iterate at t = 1.6 ended the run
+        after 8 cuts that never factorized)."""
+        self.snes.getKSP().reset()
 
     def set_line_search(self, kind: str) -> None:
         """Switch SNES's line search (petsc4py 3.18 has no line-search object: through the

@@ -23,3 +23,41 @@ def test_full_newton_retry_rescues_stiff_penalty_hertz(monkeypatch):
     assert res.converged, res.message
     rec = res.steps[-1]["contact"]["hertz"]
     assert rec["force_on_slave"][1] == pytest.approx(1.0, rel=1e-8)
+
+
+def test_a_failed_factorization_does_not_poison_the_next_solve():
+    """A singular stiffness (no material right of x = 1/2: zero rows) fails MUMPS with
+    INFOG(1) = -10; once the material is back, the same problem solves, to the solution of
+    a problem that never failed. Without resetting the linear solver the second solve
+    failed at once with INFOG(1) = -3 (B3 with a finer master: after one singular iterate
+    the step cuts never factorized again)."""
+    import numpy as np
+    import ufl
+    from mpi4py import MPI
+
+    import fenicsx_mortar as fm
+    from fenicsx_mortar import _dolfinx as dx
+    msh = dx.unit_square(MPI.COMM_WORLD, 4, 4)
+    V = dx.vector_space(msh)
+    left = dx.locate_vertices(msh, lambda x: np.isclose(x[0], 0.0))
+    bcs = [dx.dirichletbc(dx.constant(msh, 0.0), dx.vertex_dofs(V, i, left), V, i)
+           for i in range(2)]
+
+    def problem(right_stiffness: float):
+        u, v = dx.Function(V), ufl.TestFunction(V)
+        right = dx.constant(msh, right_stiffness)
+        k = ufl.conditional(ufl.lt(ufl.SpatialCoordinate(msh)[0], 0.5), 1.0, right)
+        F = (k * ufl.inner(ufl.grad(u), ufl.grad(v)) - ufl.dot(ufl.as_vector((1.0, 0.0)), v)) \
+            * ufl.dx(domain=msh, metadata={"quadrature_degree": 2})
+        return fm.ContactProblem(F, u, bcs, []), u, right
+
+    failing, u, right = problem(0.0)
+    first = failing.solve()
+    assert not first.converged and "INFOG(1) = -10" in first.reason, first.reason
+    right.value = 1.0
+    second = failing.solve()
+    assert second.converged, second.reason
+    fresh, u_fresh, _ = problem(1.0)
+    assert fresh.solve().converged
+    assert np.max(np.abs(u_fresh.x.array)) > 0.1
+    assert np.allclose(u.x.array, u_fresh.x.array, rtol=0.0, atol=1e-12)

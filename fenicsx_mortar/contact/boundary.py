@@ -25,8 +25,14 @@ are moved to node k. Then Σ_j ψ_j = 1 on every supported part still holds (a c
 pressure is transmitted exactly: the patch test is untouched, it has f = 1 everywhere), the
 sliver's gap is tested by node k's well-supported multiplier, and p_k ≈ F/(A_k + A_j)
 stays bounded. Nodes with f = 1 (everything away from the master's ends) are unchanged.
-A node whose segment neighbours are both unsupported (a master shorter than about one slave
-segment) keeps its own terms.
+Two weak nodes can sit side by side (the node on the master's end just below f = 1/2, its
+outer neighbour with a sliver): the rows of a weak node then go on, through the weak
+neighbour, to the first supported node along the chain (there ψ_k = N_k + N_j + N_i = 1 on
+the weak tail: Σ ψ = 1 still holds). Handing only to a direct neighbour left the sliver
+node its own multiplier there — B3 with a master finer than the slave met it at t = 1.6: a
+node with f = 1e-4 kept its terms and its tangential multiplier row vanished (a singular
+Jacobian). A weak node with no supported node reachable through weak ones (a master
+shorter than about one slave segment) keeps its own terms.
 
 The choice is made per Newton iterate from the current configuration, like the active set
 (it is a discrete choice: no derivative of f enters the tangent).
@@ -56,18 +62,64 @@ def unsupported(A: np.ndarray, A_full: np.ndarray,
     return (A > 0.0) & (A < threshold * A_full)
 
 
-def hand_over(c: NodalContributions, weak: np.ndarray) -> NodalContributions:
-    """The mortar contributions ``c`` with the rows of ``weak`` nodes moved to the other node
-    of their slave segment, where that node is not weak (values, gradients and Hessians are
-    over the pair's local coordinates, which do not change)."""
+def chain_neighbours(seg: np.ndarray, n: int) -> np.ndarray:
+    """(n, 2): the slave chain neighbours of every node (−1 where a chain ends)."""
+    seg = np.asarray(seg, dtype=np.int64).reshape(-1, 2)
+    nb = np.full((n, 2), -1, dtype=np.int64)
+    for a, b in seg:
+        nb[a, 0 if nb[a, 0] < 0 else 1] = b
+        nb[b, 0 if nb[b, 0] < 0 else 1] = a
+    return nb
+
+
+def _walk(start: np.ndarray, first: np.ndarray, weak: np.ndarray, supported: np.ndarray,
+          nb: np.ndarray) -> np.ndarray:
+    """From each ``start`` node, step to ``first`` and on along the chain while the nodes
+    are weak: the first supported node met, or −1 (a node neither weak nor supported, or
+    the chain's end)."""
+    prev, cur = start.copy(), first.copy()
+    out = np.full(start.shape, -1, dtype=np.int64)
+    walking = cur >= 0
+    for _ in range(len(weak)):
+        if not walking.any():
+            break
+        idx = np.flatnonzero(walking)
+        c = cur[idx]
+        hit = supported[c]
+        out[idx[hit]] = c[hit]
+        go = idx[~hit & weak[c]]
+        walking[:] = False
+        if go.size:
+            n0, n1 = nb[cur[go], 0], nb[cur[go], 1]
+            nxt = np.where(n0 == prev[go], n1, n0)
+            prev[go], cur[go] = cur[go], nxt
+            walking[go[nxt >= 0]] = True
+    return out
+
+
+def hand_over(c: NodalContributions, weak: np.ndarray, supported: np.ndarray,
+              nb: np.ndarray) -> NodalContributions:
+    """The mortar contributions ``c`` with the rows of ``weak`` nodes moved to the first
+    ``supported`` node along the slave chain (``nb``: :func:`chain_neighbours`), walking
+    first through the other node of the row's segment, else the other way, through weak
+    nodes only (module docstring); rows with no such node stay. Values, gradients and
+    Hessians are over the pair's local coordinates, which do not change."""
     if c.size == 0 or not weak.any():
         return c
     a, b = c.slave_nodes[:, 0], c.slave_nodes[:, 1]
     other = np.where(c.node == a, b, a)
-    move = weak[c.node] & ~weak[other]
-    if not move.any():
+    rows = np.flatnonzero(weak[c.node])
+    j, o = c.node[rows], other[rows]
+    to = _walk(j, o, weak, supported, nb)
+    back = to < 0
+    if back.any():
+        away = np.where(nb[j[back], 0] == o[back], nb[j[back], 1], nb[j[back], 0])
+        to[back] = _walk(j[back], away, weak, supported, nb)
+    keep = to >= 0
+    if not keep.any():
         return c
-    node = np.where(move, other, c.node)
+    node = c.node.copy()
+    node[rows[keep]] = to[keep]
     out = NodalContributions(node, c.slave_nodes, c.master_nodes, c.value, c.grad, c._hess,
                              c.tail_nodes)
     # Petrov–Galerkin test vectors (smoothed masters) are per contribution, summed by node

@@ -32,6 +32,7 @@ RUNS = {
     "10 active-set cycling": "c10_active_set_cycling.toml",
     "11 touching, huge R0": "c11_touching_huge_residual.toml",
     "12 stiff slave, press + slide": "c12_stiff_slave_press_and_slide.toml",
+    "13 half-rings, finer master": "c13_half_rings_finer_master.toml",
 }
 
 # (max Newton iterations in one step, max step cuts in the run), about 1.5x what a healthy
@@ -56,6 +57,8 @@ BOUNDS = {
     # semi-smooth Newton with multipliers: the active and stick/slip sets settle within
     # each Newton solve (5-7 iterations a step), never by a step cut
     "12 stiff slave, press + slide": (12, 0),
+    # two weak slave nodes side by side at the master's end hand over to the supported one
+    "13 half-rings, finer master": (10, 0),
 }
 
 LOGS: dict[str, list[str]] = {}

@@ -355,3 +355,17 @@ def test_case12_stiff_slave_press_and_slide_settles_in_newton():
     c = contact(run)
     if c["stick_nodes"] == 0:
         assert abs(c["tangential_force"]) == pytest.approx(0.5 * c["normal_force"], rel=1e-8)
+
+
+# ---------------------------------------------------------------------------- 13 finer master
+def test_case13_half_rings_finer_master_runs_to_the_end():
+    """B3 with a master finer than the slave, mu = 0.3: converged to t = 2, finite, <= 10
+    Newton iterations a step and no step cut (at t = 1.6 two weak slave nodes side by side
+    at the master's end: their terms go to the supported node, no singular Jacobian).
+    Physics: every slipping node on the cone, |t_T| = mu p (1e-8)."""
+    run = check_stable("13 half-rings, finer master", None)
+    assert run.result.steps[-1]["time"] == pytest.approx(2.0)
+    d = run.interfaces[-1]
+    slip = (d["pressure"] > 0) & (d["status"] == "slip")
+    assert slip.sum() >= 10
+    assert np.allclose(np.abs(d["t_tangential"][slip]), 0.3 * d["pressure"][slip], rtol=1e-8)
