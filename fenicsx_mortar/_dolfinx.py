@@ -9,6 +9,8 @@ picked by ``dolfinx.__version__``); the calls made here directly are the same in
 """
 from __future__ import annotations
 
+import ctypes
+import errno
 import logging
 
 import dolfinx
@@ -287,18 +289,57 @@ def interpolate(target: fem.Function, compiled: fem.Expression, cells: np.ndarra
 
 
 class XDMFWriter:
-    """Mesh once, then functions per pseudo-time."""
+    """Mesh once, then functions per pseudo-time. A failed write (HDF5: a full disk, say)
+    is an OSError naming the .h5 file, not HDF5's RuntimeError and its error stack on
+    stderr."""
 
     def __init__(self, comm: MPI.Comm, path: str, msh: Mesh):
-        self._f = io.XDMFFile(comm, path, "w")
-        self._f.write_mesh(msh)
+        _quiet_hdf5()
+        self._h5 = path[: -len(".xdmf")] + ".h5" if path.endswith(".xdmf") else path
+        #: True once a write failed: the file must not be touched again (closing it would
+        #: fail again, under MPI wait for ranks that left the collective call)
+        self.broken = False
+        self._f = None
+        self._f = self._io(lambda: io.XDMFFile(comm, path, "w"))
+        self._io(lambda: self._f.write_mesh(msh))
+
+    def _io(self, call):
+        try:
+            return call()
+        except RuntimeError as e:
+            self.broken = True
+            raise OSError(errno.EIO, f"the HDF5 library failed ({e})", self._h5) from None
 
     def write(self, functions, t: float) -> None:
         for f in functions:
-            self._f.write_function(f, t)
+            self._io(lambda: self._f.write_function(f, t))
 
     def close(self) -> None:
-        self._f.close()
+        if self._f is not None and not self.broken:
+            f, self._f = self._f, None
+            self._io(f.close)
+
+
+def _quiet_hdf5() -> None:
+    """Switch off HDF5's automatic printing of its error stack (tens of lines on stderr for
+    one failed write; the failure still reaches us as DOLFINx's RuntimeError)."""
+    global _hdf5_quiet
+    if _hdf5_quiet:
+        return
+    _hdf5_quiet = True
+    try:
+        with open("/proc/self/maps") as maps:
+            paths = {line.split()[-1] for line in maps if "/libhdf5" in line
+                     and "libhdf5_hl" not in line and "_hl." not in line}
+        for path in paths:
+            lib = ctypes.CDLL(path)
+            lib.H5Eset_auto2.argtypes = [ctypes.c_int64, ctypes.c_void_p, ctypes.c_void_p]
+            lib.H5Eset_auto2(0, None, None)          # H5E_DEFAULT: the default error stack
+    except (OSError, AttributeError):
+        pass                                         # not Linux, or another HDF5: noisy only
+
+
+_hdf5_quiet = False
 
 
 def measures(msh: Mesh, cell_tags, facet_tags, degree: int):

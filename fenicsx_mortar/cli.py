@@ -45,14 +45,16 @@ def _command(args) -> int:
     (MPI_Abort) instead of leaving them waiting for the one that failed."""
     from mpi4py import MPI
 
-    from .parallel import Interrupted, RunError
+    from .parallel import BrokenOutput, Interrupted, RunError
     from .scene import SceneError
     comm = MPI.COMM_WORLD
     try:
         return _dispatch(args, comm)
-    except Interrupted as e:   # each rank where the signal found it: end them all
+    except (Interrupted, BrokenOutput) as e:
+        # raised where each rank was (the signal) or on the ranks whose HDF5 write failed,
+        # while the others may wait in a collective call: end them all
         if comm.size > 1:
-            _abort_interrupted(comm, e)
+            _abort_all(comm, e)
         _error(comm, e)
         return 1
     except SceneError as e:
@@ -113,14 +115,19 @@ def _dispatch(args, comm) -> int:
     return 0 if result.converged else 1
 
 
-def _abort_interrupted(comm, e: Exception) -> None:
+def _abort_all(comm, e: Exception) -> None:
     """One line, then MPI_Abort: rank 0 says it; another rank gives rank 0 half a second
-    to (rank 0 may be deep in gmsh, where no signal handler runs) and then says it itself
-    — within the second mpirun leaves the ranks after forwarding SIGTERM."""
+    to (rank 0 may be deep in gmsh, or in a collective HDF5 call, where no signal handler
+    runs) and then says it itself. Rank 0 gives mpirun's output forwarding a moment before
+    it aborts (an abort right after the write lost the line in 1 of 3 runs). mpirun ends
+    the ranks still waiting with SIGTERM: they die of it, without a traceback."""
+    import time
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, signal.SIG_DFL)
     if comm.rank != 0:
-        import time
         time.sleep(0.5)
     _say(f"fenicsx-mortar: error: {e}")
+    time.sleep(0.3)
     comm.Abort(1)
 
 

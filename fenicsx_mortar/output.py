@@ -65,13 +65,16 @@ def write_failure(out: Path, e: OSError, kept: str) -> str:
     disk (its mount point and free bytes); ``kept`` says what is still there."""
     name = Path(e.filename).name if e.filename else "an output file"
     text = f"{out}: cannot write {name}: {e.strerror or e}"
-    if e.errno in (errno.ENOSPC, errno.EDQUOT):
+    if e.errno in (errno.ENOSPC, errno.EDQUOT, errno.EIO):
+        # EIO: the HDF5 library failed (_dolfinx.XDMFWriter) and does not say why; the
+        # disk's free space lets the user see whether it was a full disk
         mount = _mount_point(out)
+        full = "is full: " if e.errno != errno.EIO else "has "
         try:
             free = os.statvfs(out).f_bavail * os.statvfs(out).f_frsize
-            text += f" (the disk mounted at {mount} is full: {free:,} bytes free)"
+            text += f" (the disk mounted at {mount} {full}{free:,} bytes free)"
         except OSError:
-            text += f" (the disk mounted at {mount} is full)"
+            text += f" (the disk mounted at {mount} is full)" if e.errno != errno.EIO else ""
     return f"{text}; {kept}"
 
 

@@ -37,6 +37,13 @@ class RankOSError(RunError):
         return RankOSError, (self.errno, self.strerror, self.filename)
 
 
+class BrokenOutput(RunError):
+    """A write inside the HDF5 library (XDMF) failed. Raised on the ranks where it failed
+    only: the others may be waiting inside the collective HDF5 call, so the ranks cannot
+    agree on it, and the file can no longer be closed. The command line says it once and
+    ends every rank (MPI_Abort)."""
+
+
 class Interrupted(RunError):
     """SIGINT or SIGTERM outside the load steps: raised wherever each rank happens to be,
     so the ranks do not agree on it (cli.py ends them all)."""

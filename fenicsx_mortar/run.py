@@ -17,7 +17,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
+from typing import Callable, TypeVar
 
 from mpi4py import MPI
 
@@ -26,9 +26,11 @@ from . import checkpoint, guards, output
 from .contact import output as interface_output
 from .bulk import Bulk, StressOutput, build_bulk
 from .meshing import Domain, build_domain
-from .parallel import RankOSError, RunError, agree, on_rank0
+from .parallel import BrokenOutput, RankOSError, RunError, agree, on_rank0
 from .scene import Scene, SceneError
 from .solver import StepResult, Timings, run_load_steps
+
+T = TypeVar("T")
 
 
 @dataclass
@@ -138,9 +140,10 @@ def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM
             if scene.output.xdmf:
                 # a restart continues in its own file: XDMF cannot be reopened for appending
                 name = f"solution_from_step_{k0}.xdmf" if restart else "solution.xdmf"
-                writer = dx.XDMFWriter(comm, str(out / name), dom.mesh)
+                writer = _xdmf(out, kept, lambda: dx.XDMFWriter(comm, str(out / name),
+                                                                 dom.mesh))
                 stress.update()
-                writer.write([bulk.u, stress.sigma], t0)
+                _xdmf(out, kept, lambda: writer.write([bulk.u, stress.sigma], t0))
     warned: set[str] = set()
 
     def record_step(k: int, t: float, res: StepResult, cuts: int) -> None:
@@ -161,7 +164,7 @@ def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM
         with timings("output"):
             stress.update()
             if writer is not None:
-                writer.write([bulk.u, stress.sigma], t)
+                _xdmf(out, kept, lambda: writer.write([bulk.u, stress.sigma], t))
             if out is not None:
                 _write(out, comm, kept, lambda: checkpoint.save(
                     out, comm, bulk.u, pairs, t, k, steps, fingerprints), "checkpoint.npz", k)
@@ -187,15 +190,19 @@ def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM
     except RunError as e:
         # no "FAILED" log line: the caller says it (the CLI: one line on stderr); under Open
         # MPI 5 a stdout line written just before it was seen merged into mpirun's stderr
-        # (tests/hostile mpi_disk_full)
-        if writer is not None:
-            writer.close()
+        # (tests/hostile mpi_disk_full). After a failed XDMF write no rank closes the file:
+        # the close is collective, and the rank whose write failed does not take part
+        if writer is not None and not isinstance(e, BrokenOutput):
+            try:
+                writer.close()
+            except OSError:
+                pass             # the error being raised says what went wrong first
         raise
     timings["total"] = time.perf_counter() - t_start
     _enter("writing the final outputs")
     with timings("output"):
         if writer is not None:
-            writer.close()
+            _xdmf(out, kept, writer.close)
         summary.update(converged=completed, message=message, steps=steps, timings=dict(timings))
         if out is not None:
             _write(out, comm, kept, lambda: _final_outputs(out, scene, summary, steps, pairs),
@@ -245,6 +252,16 @@ def _write(out: Path, comm: MPI.Comm, kept: dict, write: Callable[[], object],
         raise RunError(output.write_failure(out, e, _kept(kept))) from None
     if name is not None:
         kept[name] = step
+
+
+def _xdmf(out: Path, kept: dict, call: Callable[[], T]) -> T:
+    """An XDMF (HDF5, collective) operation. Its failure is raised on the ranks where it
+    failed only: the others may be waiting inside the collective HDF5 call, so the ranks
+    cannot agree on it (the command line ends them all, cli.py)."""
+    try:
+        return call()
+    except OSError as e:
+        raise BrokenOutput(output.write_failure(out, e, _kept(kept))) from None
 
 
 def _kept(kept: dict) -> str:

@@ -139,12 +139,13 @@ def problem(case: Case, o: Outcome) -> str:
 
 def ours(err: str) -> str:
     """stderr without Open MPI's own reports (of a non-zero exit, of MPI_Abort): its blocks
-    between dashed lines and its "[host:pid] ..." help-aggregation lines."""
+    between dashed lines, its "[host:pid] ..." help-aggregation lines and its components'
+    lines ("mca_fbtl_posix_pwritev: error in (p)write(v): ..." on a full disk)."""
     kept, inside = [], False
     for line in err.splitlines(keepends=True):
         if line.startswith("-----"):
             inside = not inside
-        elif not inside and not re.match(r"\[[^\]\s]+:\d+\] ", line):
+        elif not inside and not re.match(r"\[[^\]\s]+:\d+\] |mca_\w+: ", line):
             kept.append(line)
     return "".join(kept)
 
