@@ -14,18 +14,36 @@ import threading
 from pathlib import Path
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse, with a usage error as the one line every other error is (and from the
+    first MPI rank only; MPI is not started yet here)."""
+
+    def error(self, message: str):
+        import os
+        if os.environ.get("OMPI_COMM_WORLD_RANK", os.environ.get("PMI_RANK", "0")) == "0":
+            _say(f"fenicsx-mortar: error: {self.prog}: {message} (see fenicsx-mortar --help)")
+        sys.exit(2)
+
+
+def _directory(text: str) -> Path:
+    if not text.strip():
+        raise argparse.ArgumentTypeError("an empty name (the outputs would go into the "
+                                         "working directory; give a directory)")
+    return Path(text)
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     if argv[:1] == ["study"]:
         return _study(argv[1:])
-    parser = argparse.ArgumentParser(prog="fenicsx-mortar",
-                                     description="2D finite-deformation mortar contact on FEniCSx")
+    parser = _Parser(prog="fenicsx-mortar",
+                     description="2D finite-deformation mortar contact on FEniCSx")
     sub = parser.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="run a scene file")
     run.add_argument("scene", type=Path, nargs="?", help="scene file (TOML, see docs/scenes.md)")
-    run.add_argument("--out", type=Path, default=None,
+    run.add_argument("--out", type=_directory, default=None,
                      help="output directory (default: results/<scene name>)")
-    run.add_argument("--restart", type=Path, default=None, metavar="DIR",
+    run.add_argument("--restart", type=_directory, default=None, metavar="DIR",
                      help="continue the run in DIR from its last converged step")
     check = sub.add_parser("check", help="validate a scene file (and its mesh) without solving")
     check.add_argument("scene", type=Path)
@@ -99,6 +117,14 @@ def _dispatch(args, comm) -> int:
             print(f"{args.scene}: OK")
         return 0
     from .run import solve
+
+    def show_warning(message, category, filename, lineno, file=None, line=None):
+        # one line, from rank 0 (a library import routes warnings through logging, which
+        # printed two lines with the source line of the call)
+        if comm.rank == 0:
+            _say(f"fenicsx-mortar: warning: {message}")
+    import warnings
+    warnings.showwarning = show_warning
     out = args.out or Path("results") / args.scene.stem
     result = solve(scene, out, comm, restart=args.restart is not None)
     if comm.rank == 0:

@@ -146,7 +146,8 @@ def _mumps_info(pc) -> str:
            f"{F.getMumpsInfog(2)}{_MUMPS.get(info, '')}"
 
 
-_MUMPS = {-10: ": the matrix is numerically singular (a body or a direction left free?)",
+_MUMPS = {-10: ": the matrix is numerically singular (a body or a direction left free? a slave "
+               "node also held by a Dirichlet condition?)",
           -8: ": the workspace is too small", -9: ": the workspace is too small",
           -13: ": out of memory", -19: ": the memory limit ICNTL(23) is too small"}
 
@@ -209,8 +210,11 @@ class StepGuard:
     def inverted(self) -> str | None:
         """Which cells have J ≤ 0 at a quadrature point (collective)."""
         comm = self.msh.comm
-        J = dx.expression_eval(self.J, self.msh, self.cells)
-        J = J.reshape(len(self.cells), -1).min(axis=1)
+        if len(self.cells):
+            J = dx.expression_eval(self.J, self.msh, self.cells)
+            J = J.reshape(len(self.cells), -1).min(axis=1)
+        else:                        # a rank without cells (more ranks than cells)
+            J = np.zeros(0)
         bad = np.flatnonzero(J <= 0)
         count = comm.allreduce(len(bad), op=MPI.SUM)
         if count == 0:

@@ -110,6 +110,38 @@ def _check_cells(model, where: str) -> None:
                                  "twice")
             owner[entity] = name
     _check_areas(model, cells.reshape(-1, n_nodes), where)
+    _check_curves(model, cells.reshape(-1, n_nodes), where)
+
+
+def _check_curves(model, cells: np.ndarray, where: str) -> None:
+    """Every segment of a physical curve group is an edge of a 2D cell: DOLFINx 0.5
+    crashes (free(): invalid pointer, in distribute_entity_data) on a curve off the
+    cells."""
+    cells = cells.astype(np.int64)
+    a, b = cells, np.roll(cells, -1, axis=1)
+    lo, hi = np.minimum(a, b).ravel(), np.maximum(a, b).ravel()
+    n = int(max(cells.max(), 0)) + 1
+    edges = np.unique(lo * n + hi)
+    tags, xyz, _ = model.mesh.getNodes()
+    x = dict(zip(tags.astype(np.int64).tolist(), xyz.reshape(-1, 3)[:, :2].tolist()))
+    for dim, tag in model.getPhysicalGroups(1):
+        name = model.getPhysicalName(dim, tag) or str(tag)
+        for entity in model.getEntitiesForPhysicalGroup(dim, tag):
+            for etype, _, nodes in zip(*model.mesh.getElements(1, entity)):
+                k = model.mesh.getElementProperties(etype)[3]
+                seg = np.asarray(nodes, dtype=np.int64).reshape(-1, k)[:, :2]
+                s0, s1 = seg.min(axis=1), seg.max(axis=1)
+                key = np.where(s1 < n, s0 * n + s1, -1)
+                off = ~np.isin(key, edges)
+                if off.any():
+                    i = np.flatnonzero(off)[0]
+                    p0, p1 = x.get(int(seg[i, 0]), (np.nan,) * 2), x.get(int(seg[i, 1]),
+                                                                       (np.nan,) * 2)
+                    raise SceneError(
+                        f"{where}: physical curve {name!r} has {int(off.sum())} segment(s) "
+                        f"that are no cell's edge (the first from ({p0[0]:.6g}, "
+                        f"{p0[1]:.6g}) to ({p1[0]:.6g}, {p1[1]:.6g})): a boundary group "
+                        "must lie on the cells of the bodies")
 
 
 def _check_areas(model, cells: np.ndarray, where: str) -> None:

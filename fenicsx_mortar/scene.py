@@ -332,6 +332,11 @@ class Scene:
                 raise SceneError(f"{key}: 't' and 'value' need the same length (>= 2)")
             if any(b <= a for a, b in zip(c.t, c.t[1:])):
                 raise SceneError(f"{key}.t must increase strictly")
+            # the interpolation divides by t[k] - t[k-1]: an infinite difference would make
+            # the curve 0 inside that interval, silently
+            if any(not math.isfinite(b - a) for a, b in zip(c.t, c.t[1:])):
+                raise SceneError(f"{key}.t: the span between two points overflows "
+                                 "(beyond 1.8e308)")
         for kind, items in (("dirichlet", self.dirichlet), ("pressures", self.pressures),
                             ("tractions", self.tractions)):
             for i, item in enumerate(items):
@@ -423,7 +428,20 @@ class Scene:
             if both:
                 raise SceneError(f"{key}: slave and master surfaces must differ "
                                  f"(both name {both})")
+            for j, other in enumerate(self.contacts[:i]):
+                if (set(_as_list(c.slave)) & set(_as_list(other.slave))
+                        and set(_as_list(c.master)) & set(_as_list(other.master))):
+                    raise SceneError(f"{key}: the same slave and master surfaces as "
+                                     f"contacts[{j}] ({other.name!r}): the contact would be "
+                                     "counted twice (with multipliers: a singular system)")
             e = c.enforcement
+            if getattr(ENFORCEMENTS[e.type], "unknowns", 0) and \
+                    self.solver.linear_solver != "mumps":
+                raise SceneError(
+                    f"solver.linear_solver = {self.solver.linear_solver!r}: cannot solve the "
+                    f"saddle-point system of {key}'s multipliers (enforcement "
+                    f"{e.type!r}: zero pivots that need MUMPS's pivoting); use 'mumps', or "
+                    "enforcement 'alm' or 'penalty'")
             if e.epsilon is not None and not e.epsilon > 0:
                 raise SceneError(f"{key}.enforcement.epsilon = {e.epsilon}: must be positive")
             if not e.tolerance > 0:
@@ -761,7 +779,11 @@ def _convert(tp, value, key: str):
     if tp is float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise SceneError(f"{key} = {value!r}: expected a number")
-        return float(value)
+        try:
+            return float(value)
+        except OverflowError:   # a TOML integer of hundreds of digits
+            raise SceneError(f"{key} = an integer of {len(str(abs(value)))} digits: beyond "
+                             "the largest float (1.8e308)") from None
     if tp is int:
         if isinstance(value, bool) or not isinstance(value, int):
             raise SceneError(f"{key} = {value!r}: expected an integer")

@@ -361,6 +361,22 @@ add(
           ("pressures[0].curve", "c")),
     value("curve_value_inf", "curves.c.value[1]", CURVE, ("curves.c.value", [0.0, INF, 1.0]),
           ("pressures[0].curve", "c")),
+    # the same pair twice: redundant multipliers, a singular system (it said "a body or a
+    # direction left free?")
+    value("pair_twice", "contacts[1]", ("contacts", [
+        {"name": "c", "slave": "block_bottom", "master": "slab_top"},
+        {"name": "c2", "slave": "block_bottom", "master": "slab_top"}])),
+    # SuperLU_dist and hypre cannot take the multipliers' zero pivots (DIVERGED_PCSETUP_FAILED
+    # without a word on the solver)
+    value("superlu_dist_with_multipliers", "solver.linear_solver",
+          ("solver.linear_solver", "superlu_dist")),
+    value("gmres_hypre_with_multipliers", "solver.linear_solver",
+          ("solver.linear_solver", "gmres-hypre")),
+    # t − t_prev overflows: the curve would be 0 inside the interval, silently
+    value("curve_t_span_overflows", "curves.c.t", CURVE,
+          ("curves.c.t", [-1.7e308, 1.7e308]), ("curves.c.value", [0.0, 1.0]),
+          ("pressures[0].curve", "c")),
+    value("E_integer_beyond_float", "bodies[0].material.E", ("bodies[0].material.E", 10**400)),
     value("curve_value_nan_unused", "curves.c.value[2]", CURVE,
           ("curves.c.value", [0.0, 1.0, NAN]), hazard="ignored"),
     value("epsilon_inf", f"{CONTACT}.enforcement.epsilon",
@@ -526,6 +542,13 @@ add(
 # -- the scene file itself ----------------------------------------------------------------
 BASE_TEXT = dumps(BASE)
 add(
+    # command-line misuse: one line too (argparse printed its usage line first)
+    Case("cli_empty_out", 2, "--out", base(), argv=("run", "{scene}", "--out", ""),
+         mode="process"),
+    Case("cli_unknown_command", 2, "'solve'", base(), argv=("solve", "{scene}"),
+         mode="process"),
+    Case("cli_two_scenes", 2, "unrecognized", base(), argv=("run", "{scene}", "{scene}"),
+         mode="process"),
     Case("scene_is_a_directory", 2, "sdir", None, argv=("run", "{dir}/sdir", "--out", "{out}"),
          prepare=mkdir("sdir")),
     Case("scene_dev_zero", 2, "/dev/zero", None, argv=("run", "/dev/zero", "--out", "{out}")),
@@ -635,6 +658,11 @@ add(
     mesh_case("mesh_truncated", "truncated.msh", "truncated.msh"),
     mesh_case("mesh_overlapping_groups", "overlap.msh", "overlap.msh"),
     mesh_case("mesh_zero_area_cell", "zero_area.msh", "zero_area.msh"),
+    # a boundary group off the cells: DOLFINx 0.5 crashed (free(): invalid pointer)
+    mesh_case("mesh_curve_off_the_cells", "'floating'", "floating.msh"),
+    square_case("mesh_curve_off_the_cells_as_master", 2, "'floating'",
+                ("contacts", [{"name": "f", "slave": "top", "master": "floating"}]),
+                mesh="floating.msh", stage="mesh"),
     Case("mesh_is_a_directory", 2, "mdir", square()[0] | {"mesh": {"file": "mdir"}},
          prepare=mkdir("mdir")),
     Case("mesh_dev_zero", 2, "/dev/zero", square()[0] | {"mesh": {"file": "/dev/zero"}}),
@@ -717,6 +745,9 @@ add(
          mode="process", fault=True, check=full_disk_kept, stage="run"),
 )
 add(
+    # one cell, two ranks: a rank owns no cell (the inversion guard reshaped an empty array)
+    Case("mpi_more_ranks_than_cells", 0, "done", edit(BLOCK, ("mesh.params", {"nx": 1, "ny": 1})),
+         mode="mpi", ranks=2, stage="run"),
     Case("mpi_out_is_a_file", 2, "--out", base(), prepare=write("out", b"x"), mode="mpi",
          ranks=2),
     Case("mpi_corrupt_checkpoint", 2, "checkpoint.npz", None, argv=("run", "--restart", "{out}"),

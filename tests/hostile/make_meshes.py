@@ -90,6 +90,17 @@ def lines_only():
     _groups({"block": [s]}, dict(zip(SIDES, ([x] for x in c))))
 
 
+def floating():
+    """The unit square and a meshed line above it (y = 2) in a physical curve group
+    "floating": a boundary whose segments are no cell's edges (DOLFINx 0.5 crashed on it)."""
+    s, c = _square(0.0, 1.0, 2, True)
+    occ = gmsh.model.occ
+    line = occ.addLine(occ.addPoint(1.0, 2.0, 0.0), occ.addPoint(0.0, 2.0, 0.0))
+    occ.synchronize()
+    gmsh.model.mesh.setTransfiniteCurve(line, 3)
+    _groups({"block": [s]}, {**dict(zip(SIDES, ([x] for x in c))), "floating": [line]})
+
+
 def main() -> None:
     HERE.mkdir(exist_ok=True)
     _write("square.msh", unit_square())
@@ -99,6 +110,7 @@ def main() -> None:
     _write("quad8.msh", unit_square(), order=2, incomplete=1)
     _write("overlap.msh", overlap)
     _write("lines_only.msh", lines_only, dim=1)
+    _write("floating.msh", floating)
     # a unit square and, beside it, a quadrilateral whose four corners lie on one line
     # (zero area), written by hand (gmsh 2.2)
     (HERE / "zero_area.msh").write_text(
