@@ -183,7 +183,7 @@ def main(argv=None) -> None:
                     default=("hertz", "rings", "ironing"))
     ap.add_argument("--compare", action="store_true",
                     help="B3 and B4 also with the Uzawa ALM (minutes)")
-    ap.add_argument("--repeat", type=int, default=3,
+    ap.add_argument("--repeat", type=lambda v: max(1, int(v)), default=3,
                     help="Hertz: solves per row, the fastest reported (default 3)")
     args = ap.parse_args(argv)
     paths = ["lagrange"] + (["alm"] if args.compare else [])

@@ -322,7 +322,8 @@ class XDMFWriter:
 
 def _quiet_hdf5() -> None:
     """Switch off HDF5's automatic printing of its error stack (tens of lines on stderr for
-    one failed write; the failure still reaches us as DOLFINx's RuntimeError)."""
+    one failed write; the failure still reaches us as DOLFINx's RuntimeError). Process-wide
+    and for the rest of the process, once the package writes an XDMF file."""
     global _hdf5_quiet
     if _hdf5_quiet:
         return
@@ -331,12 +332,17 @@ def _quiet_hdf5() -> None:
         with open("/proc/self/maps") as maps:
             paths = {line.split()[-1] for line in maps if "/libhdf5" in line
                      and "libhdf5_hl" not in line and "_hl." not in line}
-        for path in paths:
+    except OSError:
+        return                                       # not Linux: noisy only
+    for path in paths:
+        try:
             lib = ctypes.CDLL(path)
+            # herr_t H5Eset_auto2(hid_t estack, H5E_auto2_t func, void *data); hid_t is
+            # int64_t since HDF5 1.10, H5E_DEFAULT = 0 (the default error stack)
             lib.H5Eset_auto2.argtypes = [ctypes.c_int64, ctypes.c_void_p, ctypes.c_void_p]
-            lib.H5Eset_auto2(0, None, None)          # H5E_DEFAULT: the default error stack
-    except (OSError, AttributeError):
-        pass                                         # not Linux, or another HDF5: noisy only
+            lib.H5Eset_auto2(0, None, None)
+        except (OSError, AttributeError):
+            pass                                     # another HDF5: noisy only
 
 
 _hdf5_quiet = False

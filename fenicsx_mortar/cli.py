@@ -142,16 +142,17 @@ def _dispatch(args, comm) -> int:
 
 
 def _abort_all(comm, e: Exception) -> None:
-    """One line, then MPI_Abort: rank 0 says it; another rank gives rank 0 half a second
-    to (rank 0 may be deep in gmsh, or in a collective HDF5 call, where no signal handler
-    runs) and then says it itself. Rank 0 gives mpirun's output forwarding a moment before
+    """One line, then MPI_Abort: rank 0 says it; another rank gives rank 0 0.8 s to (rank 0
+    may be deep in gmsh, or in a collective HDF5 call, where no signal handler runs) and
+    then says it itself. Rank 0 gives mpirun's output forwarding a moment before
     it aborts (an abort right after the write lost the line in 1 of 3 runs). mpirun ends
     the ranks still waiting with SIGTERM: they die of it, without a traceback."""
     import time
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, signal.SIG_DFL)
+    if threading.current_thread() is threading.main_thread():
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, signal.SIG_DFL)
     if comm.rank != 0:
-        time.sleep(0.5)
+        time.sleep(0.8)          # mpirun's SIGKILL follows its SIGTERM after 1 s
     _say(f"fenicsx-mortar: error: {e}")
     time.sleep(0.3)
     comm.Abort(1)

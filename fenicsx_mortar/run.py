@@ -76,7 +76,10 @@ def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM
     Bad input raises SceneError on every rank, before meshing where it can be told without
     the mesh (the scene, the PETSc options, the output directory, the checkpoint) and
     before anything is written otherwise; a write that fails (a full disk) stops the run
-    with RunError naming the disk, keeping the last good summary.json and checkpoint."""
+    with RunError naming the disk, keeping the last good summary.json and checkpoint. A
+    failed XDMF write (inside HDF5, collective) raises BrokenOutput (a RunError) on the
+    ranks where it failed only — the others may wait in the collective call: under MPI
+    the caller must end every rank (the command line calls MPI_Abort)."""
     _enter("checking the inputs")
     scene.validate()
     guards.check_petsc_options(scene.solver)

@@ -26,13 +26,17 @@ pressure is transmitted exactly: the patch test is untouched, it has f = 1 every
 sliver's gap is tested by node k's well-supported multiplier, and p_k ≈ F/(A_k + A_j)
 stays bounded. Nodes with f = 1 (everything away from the master's ends) are unchanged.
 Two weak nodes can sit side by side (the node on the master's end just below f = 1/2, its
-outer neighbour with a sliver): the rows of a weak node then go on, through the weak
-neighbour, to the first supported node along the chain (there ψ_k = N_k + N_j + N_i = 1 on
-the weak tail: Σ ψ = 1 still holds). Handing only to a direct neighbour left the sliver
-node its own multiplier there — B3 with a master finer than the slave met it at t = 1.6: a
-node with f = 1e-4 kept its terms and its tangential multiplier row vanished (a singular
-Jacobian). A weak node with no supported node reachable through weak ones (a master
-shorter than about one slave segment) keeps its own terms.
+outer neighbour with a sliver). The rows of both on the segment between them then go,
+together, to the supported neighbour beyond the better supported of the two (the larger
+A_j; beyond the other if that one is not supported), and the rest of their rows to their
+supported neighbours as above: ψ_k = N_k + N_j + N_i = 1 on the weak tail, Σ ψ = 1 still.
+Handing only to a direct neighbour left the sliver node its own multiplier there — B3 with
+a master finer than the slave met it at t = 1.6: a node with f = 1e-4 kept its terms and
+its tangential multiplier row vanished (a singular Jacobian). Rows go at most one node
+beyond their segment, so under MPI the rank owning the receiver has integrated the
+segment when every rank integrates one segment more at each partition boundary
+(:func:`segments_to_integrate`). Rows with no supported receiver so near (three weak nodes
+in a row, a master shorter than about one slave segment) stay where they are.
 
 The choice is made per Newton iterate from the current configuration, like the active set
 (it is a discrete choice: no derivative of f enters the tangent).
@@ -67,59 +71,61 @@ def chain_neighbours(seg: np.ndarray, n: int) -> np.ndarray:
     seg = np.asarray(seg, dtype=np.int64).reshape(-1, 2)
     nb = np.full((n, 2), -1, dtype=np.int64)
     for a, b in seg:
-        nb[a, 0 if nb[a, 0] < 0 else 1] = b
-        nb[b, 0 if nb[b, 0] < 0 else 1] = a
+        for node, other in ((a, b), (b, a)):
+            if nb[node, 0] < 0:
+                nb[node, 0] = other
+            elif nb[node, 1] < 0:
+                nb[node, 1] = other
+            else:
+                raise ValueError(f"slave node {node} is in more than two segments: not a chain")
     return nb
 
 
-def _walk(start: np.ndarray, first: np.ndarray, weak: np.ndarray, supported: np.ndarray,
-          nb: np.ndarray) -> np.ndarray:
-    """From each ``start`` node, step to ``first`` and on along the chain while the nodes
-    are weak: the first supported node met, or −1 (a node neither weak nor supported, or
-    the chain's end)."""
-    prev, cur = start.copy(), first.copy()
-    out = np.full(start.shape, -1, dtype=np.int64)
-    walking = cur >= 0
-    for _ in range(len(weak)):
-        if not walking.any():
-            break
-        idx = np.flatnonzero(walking)
-        c = cur[idx]
-        hit = supported[c]
-        out[idx[hit]] = c[hit]
-        go = idx[~hit & weak[c]]
-        walking[:] = False
-        if go.size:
-            n0, n1 = nb[cur[go], 0], nb[cur[go], 1]
-            nxt = np.where(n0 == prev[go], n1, n0)
-            prev[go], cur[go] = cur[go], nxt
-            walking[go[nxt >= 0]] = True
-    return out
+def segments_to_integrate(owned: np.ndarray, seg: np.ndarray, nb: np.ndarray) -> np.ndarray:
+    """The slave segments a rank integrates: those touching the nodes it owns or their
+    chain neighbours (:func:`hand_over` moves rows one node beyond their segment)."""
+    near = owned.copy()
+    for k in (0, 1):
+        has = nb[:, k] >= 0
+        near[nb[has, k]] |= owned[has]
+    return near[seg[:, 0]] | near[seg[:, 1]]
 
 
-def hand_over(c: NodalContributions, weak: np.ndarray, supported: np.ndarray,
+def _beyond(nb: np.ndarray, node: np.ndarray, away: np.ndarray) -> np.ndarray:
+    """The chain neighbour of ``node`` that is not ``away`` (−1 at a chain end)."""
+    return np.where(nb[node, 0] == away, nb[node, 1], nb[node, 0])
+
+
+def hand_over(c: NodalContributions, A: np.ndarray, weak: np.ndarray, supported: np.ndarray,
               nb: np.ndarray) -> NodalContributions:
-    """The mortar contributions ``c`` with the rows of ``weak`` nodes moved to the first
-    ``supported`` node along the slave chain (``nb``: :func:`chain_neighbours`), walking
-    first through the other node of the row's segment, else the other way, through weak
-    nodes only (module docstring); rows with no such node stay. Values, gradients and
+    """The mortar contributions ``c`` with the rows of ``weak`` nodes moved to a
+    ``supported`` node (module docstring): the other node of the row's segment if it is
+    supported; if it is weak too, the supported neighbour beyond the segment's end with the
+    larger nodal area ``A`` (else beyond the other end), the same for both rows of that
+    segment; else the row stays. ``nb``: :func:`chain_neighbours`. Values, gradients and
     Hessians are over the pair's local coordinates, which do not change."""
     if c.size == 0 or not weak.any():
         return c
     a, b = c.slave_nodes[:, 0], c.slave_nodes[:, 1]
     other = np.where(c.node == a, b, a)
-    rows = np.flatnonzero(weak[c.node])
-    j, o = c.node[rows], other[rows]
-    to = _walk(j, o, weak, supported, nb)
-    back = to < 0
-    if back.any():
-        away = np.where(nb[j[back], 0] == o[back], nb[j[back], 1], nb[j[back], 0])
-        to[back] = _walk(j[back], away, weak, supported, nb)
-    keep = to >= 0
-    if not keep.any():
+    to = np.full(c.node.shape, -1, dtype=np.int64)
+    mine = weak[c.node]
+    simple = mine & supported[other]
+    to[simple] = other[simple]
+    both = np.flatnonzero(mine & weak[other])
+    if both.size:
+        sa, sb = a[both], b[both]
+        first_a = (A[sa] > A[sb]) | ((A[sa] == A[sb]) & (sa < sb))
+        p, q = np.where(first_a, sa, sb), np.where(first_a, sb, sa)
+        for end, far in ((p, q), (q, p)):
+            k = _beyond(nb, end, far)
+            ok = (to[both] < 0) & (k >= 0)
+            ok[ok] = supported[k[ok]]
+            to[both[ok]] = k[ok]
+    move = to >= 0
+    if not move.any():
         return c
-    node = c.node.copy()
-    node[rows[keep]] = to[keep]
+    node = np.where(move, to, c.node)
     out = NodalContributions(node, c.slave_nodes, c.master_nodes, c.value, c.grad, c._hess,
                              c.tail_nodes)
     # Petrov–Galerkin test vectors (smoothed masters) are per contribution, summed by node

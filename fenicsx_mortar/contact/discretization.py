@@ -97,8 +97,8 @@ class Mortar(Discretization):
         if weak.any():
             supported = A >= boundary.SUPPORT_THRESHOLD * A_full
             nb = self._neighbours
-            gap = boundary.hand_over(gap, weak, supported, nb)
-            area = boundary.hand_over(area, weak, supported, nb)
+            gap = boundary.hand_over(gap, A, weak, supported, nb)
+            area = boundary.hand_over(area, A, weak, supported, nb)
             A = s.owned_sum(nodal_sum(area, s.n))
         return gap, area, s.owned_sum(nodal_sum(gap, s.n)), A
 

@@ -98,10 +98,12 @@ class ContactPair:
         # freezes its parametrization there, docs/design.md §6), moved with the nodes in between
         self._curve = make_curve(smoothing, m.X, m.seg)
         self.weight = s.owned.astype(float)
-        # this rank integrates the slave segments touching the nodes whose dofs it owns: the
-        # weighted gaps of those nodes are then complete here (one segment of overlap at
-        # each partition boundary), and their terms are inserted by this rank only
-        self.my_segments = s.owned[s.seg[:, 0]] | s.owned[s.seg[:, 1]]
+        # this rank integrates the slave segments touching the nodes whose dofs it owns and
+        # their neighbours: the weighted gaps of its nodes are then complete here, also
+        # where the master's edge hands terms one node on (boundary.py), and their terms
+        # are inserted by this rank only (the rows of other ranks' nodes weigh 0)
+        self.my_segments = boundary.segments_to_integrate(
+            s.owned, s.seg, boundary.chain_neighbours(s.seg, s.n))
         self.layouts = assembly.Layouts()
         self.augmentations = 0
         self._first_jacobian = True

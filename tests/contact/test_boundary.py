@@ -13,23 +13,46 @@ from fenicsx_mortar.contact.search import candidate_pairs
 DELTA = 0.037
 
 
-def handed_over(xs_, basis):
-    """Master y = 0 on x ∈ [0, 4] (+x, 9 jittered nodes), slave y = δ through the nodes
-    ``xs_`` (traversed −x): (A, g̃, A_full) before and after the hand-over."""
+def master(pieces=((0.0, 4.0),)):
+    """Master y = 0 on the x intervals ``pieces`` (+x, 9 jittered nodes each, one chain
+    per piece)."""
     rng = np.random.default_rng(3)
-    xm_ = jittered(0.0, 4.0, 9, rng, 0.4)
-    xm, sm = chain(np.c_[xm_, np.zeros_like(xm_)])
-    xs, ss = chain(np.c_[xs_, np.full_like(xs_, DELTA)])
+    xm, sm = [], []
+    for x0, x1 in pieces:
+        x, s = chain(np.c_[jittered(x0, x1, 9, rng, 0.4), np.zeros(9)])
+        sm.append(s + sum(len(p) for p in xm))
+        xm.append(x)
+    return np.vstack(xm), np.vstack(sm)
+
+
+def kernel(xs, ss, xm, sm, basis, segments=None):
+    """The mortar contributions of the slave segments ``segments`` (default all)."""
     pairs = candidate_pairs(xs, ss, xm, sm, 0.3)
-    gap, area = mortar.weighted_gaps(xs, ss, xm, sm, Polyline(xm, sm), pairs, 2, basis=basis)
+    if segments is not None:
+        keep = segments[pairs[0]]
+        pairs = (pairs[0][keep], pairs[1][keep])
+    return mortar.weighted_gaps(xs, ss, xm, sm, Polyline(xm, sm), pairs, 2, basis=basis)
+
+
+def decide(A, xs, ss):
+    A_full = boundary.full_areas(xs, ss, len(xs))
+    return (boundary.unsupported(A, A_full), A >= boundary.SUPPORT_THRESHOLD * A_full,
+            boundary.chain_neighbours(ss, len(xs)))
+
+
+def handed_over(xs_, basis, pieces=((0.0, 4.0),)):
+    """Slave y = δ through the nodes ``xs_`` (traversed −x) over :func:`master`: nodal
+    areas and weighted gaps before and after the hand-over."""
+    xm, sm = master(pieces)
+    xs, ss = chain(np.c_[xs_, np.full_like(xs_, DELTA)])
+    gap, area = kernel(xs, ss, xm, sm, basis)
     n = len(xs)
-    A, A_full = nodal_sum(area, n), boundary.full_areas(xs, ss, n)
-    weak = boundary.unsupported(A, A_full)
-    supported = A >= boundary.SUPPORT_THRESHOLD * A_full
-    nb = boundary.chain_neighbours(ss, n)
-    gap2, area2 = (boundary.hand_over(c, weak, supported, nb) for c in (gap, area))
+    A = nodal_sum(area, n)
+    weak, supported, nb = decide(A, xs, ss)
+    gap2, area2 = (boundary.hand_over(c, A, weak, supported, nb) for c in (gap, area))
     return dict(A=A, G=nodal_sum(gap, n), A2=nodal_sum(area2, n), G2=nodal_sum(gap2, n),
-                weak=weak, supported=supported, overlap=4.0 - min(xs_))
+                weak=weak, supported=supported,
+                overlap=sum(max(0.0, min(b, xs_.max()) - max(a, xs_.min())) for a, b in pieces))
 
 
 @pytest.mark.parametrize("basis", ["standard", "dual"])
@@ -64,3 +87,46 @@ def test_no_supported_node_reachable_keeps_the_terms():
     r = handed_over(np.array([12.0, 2.0, -8.0]), "standard")
     assert r["weak"].all() and not r["supported"].any()
     assert np.array_equal(r["A2"], r["A"])
+
+
+def test_a_gap_in_the_master_is_not_crossed():
+    # master in two pieces, [0, 4] and [6.5, 10]: the weak nodes at 5.9 (over the gap's
+    # sliver of piece one) and 3.9 hand the rows of their shared segment to 2.9, beside
+    # the better supported one, not to 6.9 over the other piece
+    xs_ = np.array([8.9, 7.9, 6.9, 5.9, 3.9, 2.9, 1.9, 0.9])
+    r = handed_over(xs_, "dual", pieces=((0.0, 4.0), (6.5, 10.0)))
+    i59, i39, i29 = 3, 4, 5
+    assert r["weak"][i59] and r["weak"][i39] and r["supported"][i29]
+    assert r["A2"][i59] == 0.0 and r["A2"][i39] == 0.0
+    # the part of the segment (5.9, 3.9) over piece one is [3.9, 4.0]: it belongs to 2.9's
+    # side; 6.9 keeps what it sees of piece two, plus 5.9's rows on (6.9, 5.9) only
+    seg_part = 0.1                                   # |[3.9, 4.0]|
+    assert r["A2"][i29] - r["A"][i29] == pytest.approx(
+        seg_part + 0.5, abs=1e-12)                   # + node 3.9's half of (3.9, 2.9)
+    assert r["A2"].sum() == pytest.approx(r["A"].sum(), abs=1e-13)
+    assert np.allclose(r["G2"], DELTA * r["A2"], rtol=0, atol=1e-14)
+
+
+@pytest.mark.parametrize("split", [2, 3, 4, 5])
+def test_partitioned_integration_gives_the_serial_sums(split):
+    """MPI as each rank does it (pair.py, discretization.py), emulated: a rank integrates
+    :func:`boundary.segments_to_integrate` of the nodes it owns, the nodal areas are the
+    owners' sums, and after the hand-over each node's value is its owner's. Every split of
+    the side-by-side chain must give the serial nodal areas and weighted gaps."""
+    xs_ = np.array([7.9, 6.9, 5.9, 3.9, 2.9, 1.9, 0.9])
+    xm, sm = master()
+    xs, ss = chain(np.c_[xs_, np.full_like(xs_, DELTA)])
+    n = len(xs)
+    serial = handed_over(xs_, "dual")
+    owners = [np.arange(n) < split, np.arange(n) >= split]
+    nb = boundary.chain_neighbours(ss, n)
+    parts = [kernel(xs, ss, xm, sm, "dual", boundary.segments_to_integrate(o, ss, nb))
+             for o in owners]
+    A = sum(np.where(o, nodal_sum(area, n), 0.0) for o, (_, area) in zip(owners, parts))
+    weak, supported, nb = decide(A, xs, ss)
+    A2 = G2 = 0.0
+    for o, (gap, area) in zip(owners, parts):
+        A2 = A2 + np.where(o, nodal_sum(boundary.hand_over(area, A, weak, supported, nb), n), 0)
+        G2 = G2 + np.where(o, nodal_sum(boundary.hand_over(gap, A, weak, supported, nb), n), 0)
+    assert np.allclose(A2, serial["A2"], rtol=0, atol=1e-14)
+    assert np.allclose(G2, serial["G2"], rtol=0, atol=1e-14)
