@@ -337,9 +337,11 @@ def _step_line(k: int, t: float, res: StepResult, cuts: int) -> str:
 
 
 def _on_terminal() -> bool:
-    # Open MPI 5 gives every rank's stdout a pty of its own: not the user's terminal, and the
-    # half-written status line would end up in front of the rank's last stderr line
-    return sys.stdout.isatty() and MPI.COMM_WORLD.size == 1
+    # Open MPI gives every rank's stdout a pty of its own (also under mpirun -n 1): not the
+    # user's terminal, and the half-written status line would end up in front of the
+    # rank's last stderr line, or as escape codes in a redirected output
+    return (sys.stdout.isatty() and MPI.COMM_WORLD.size == 1
+            and not any(k in os.environ for k in ("OMPI_COMM_WORLD_SIZE", "PMI_SIZE")))
 
 
 def _log_line(s: str) -> None:
