@@ -109,34 +109,37 @@ def _check_cells(model, where: str) -> None:
                                  f"({owner[entity]!r} and {name!r}): its cells would count "
                                  "twice")
             owner[entity] = name
-    _check_areas(model, cells.reshape(-1, n_nodes), where)
-    _check_curves(model, cells.reshape(-1, n_nodes), where)
+    cells = cells.reshape(-1, n_nodes).astype(np.int64)
+    x = _node_coordinates(model)
+    _check_areas(x, cells, where)
+    _check_curves(model, x, cells, where)
 
 
-def _check_curves(model, cells: np.ndarray, where: str) -> None:
+def _node_coordinates(model) -> np.ndarray:
+    """(max node tag + 1, 2): the nodes' x, y by gmsh node tag (NaN where no node)."""
+    tags, xyz, _ = model.mesh.getNodes()
+    x = np.full((int(tags.max()) + 1, 2), np.nan)
+    x[tags.astype(np.int64)] = xyz.reshape(-1, 3)[:, :2]
+    return x
+
+
+def _check_curves(model, x: np.ndarray, cells: np.ndarray, where: str) -> None:
     """Every segment of a physical curve group is an edge of a 2D cell: DOLFINx 0.5
     crashes (free(): invalid pointer, in distribute_entity_data) on a curve off the
     cells."""
-    cells = cells.astype(np.int64)
     a, b = cells, np.roll(cells, -1, axis=1)
     lo, hi = np.minimum(a, b).ravel(), np.maximum(a, b).ravel()
-    n = int(max(cells.max(), 0)) + 1
+    n = len(x)
     edges = np.unique(lo * n + hi)
-    tags, xyz, _ = model.mesh.getNodes()
-    x = dict(zip(tags.astype(np.int64).tolist(), xyz.reshape(-1, 3)[:, :2].tolist()))
     for dim, tag in model.getPhysicalGroups(1):
         name = model.getPhysicalName(dim, tag) or str(tag)
         for entity in model.getEntitiesForPhysicalGroup(dim, tag):
             for etype, _, nodes in zip(*model.mesh.getElements(1, entity)):
                 k = model.mesh.getElementProperties(etype)[3]
                 seg = np.asarray(nodes, dtype=np.int64).reshape(-1, k)[:, :2]
-                s0, s1 = seg.min(axis=1), seg.max(axis=1)
-                key = np.where(s1 < n, s0 * n + s1, -1)
-                off = ~np.isin(key, edges)
+                off = ~np.isin(seg.min(axis=1) * n + seg.max(axis=1), edges)
                 if off.any():
-                    i = np.flatnonzero(off)[0]
-                    p0, p1 = x.get(int(seg[i, 0]), (np.nan,) * 2), x.get(int(seg[i, 1]),
-                                                                       (np.nan,) * 2)
+                    p0, p1 = x[seg[np.flatnonzero(off)[0]]]
                     raise SceneError(
                         f"{where}: physical curve {name!r} has {int(off.sum())} segment(s) "
                         f"that are no cell's edge (the first from ({p0[0]:.6g}, "
@@ -144,11 +147,8 @@ def _check_curves(model, cells: np.ndarray, where: str) -> None:
                         "must lie on the cells of the bodies")
 
 
-def _check_areas(model, cells: np.ndarray, where: str) -> None:
-    tags, xyz, _ = model.mesh.getNodes()
-    x = np.zeros((int(tags.max()) + 1, 2))
-    x[tags.astype(np.int64)] = xyz.reshape(-1, 3)[:, :2]
-    p = x[cells.astype(np.int64)]                        # (n, k, 2) corners in order
+def _check_areas(x: np.ndarray, cells: np.ndarray, where: str) -> None:
+    p = x[cells]                                         # (n, k, 2) corners in order
     q = np.roll(p, -1, axis=1)
     area = 0.5 * np.abs(np.sum(p[..., 0] * q[..., 1] - q[..., 0] * p[..., 1], axis=1))
     scale = float(np.ptp(p.reshape(-1, 2), axis=0).max()) ** 2

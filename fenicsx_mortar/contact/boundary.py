@@ -43,6 +43,8 @@ The choice is made per Newton iterate from the current configuration, like the a
 """
 from __future__ import annotations
 
+from typing import Sequence
+
 import numpy as np
 
 from .kernel import NodalContributions
@@ -60,10 +62,12 @@ def full_areas(xs: np.ndarray, seg: np.ndarray, n: int) -> np.ndarray:
             + np.bincount(seg[:, 1], weights=half, minlength=n))
 
 
-def unsupported(A: np.ndarray, A_full: np.ndarray,
-                threshold: float = SUPPORT_THRESHOLD) -> np.ndarray:
-    """Nodes that see the master (A > 0) on less than ``threshold`` of their support."""
-    return (A > 0.0) & (A < threshold * A_full)
+def classify(A: np.ndarray, A_full: np.ndarray, threshold: float = SUPPORT_THRESHOLD
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """(weak, supported): the nodes that see the master (A > 0) on less than ``threshold``
+    of their support, and those that see it on at least that."""
+    supported = A >= threshold * A_full
+    return (A > 0.0) & ~supported, supported
 
 
 def chain_neighbours(seg: np.ndarray, n: int) -> np.ndarray:
@@ -96,16 +100,20 @@ def _beyond(nb: np.ndarray, node: np.ndarray, away: np.ndarray) -> np.ndarray:
     return np.where(nb[node, 0] == away, nb[node, 1], nb[node, 0])
 
 
-def hand_over(c: NodalContributions, A: np.ndarray, weak: np.ndarray, supported: np.ndarray,
-              nb: np.ndarray) -> NodalContributions:
-    """The mortar contributions ``c`` with the rows of ``weak`` nodes moved to a
-    ``supported`` node (module docstring): the other node of the row's segment if it is
+def hand_over(contributions: Sequence[NodalContributions], A: np.ndarray,
+              A_full: np.ndarray, nb: np.ndarray) -> tuple[NodalContributions, ...]:
+    """The mortar contributions (weighted gaps and nodal areas: the same rows) with the
+    rows of weak nodes (:func:`classify` of the nodal areas ``A``, ``A_full``) moved to a
+    supported node (module docstring): the other node of the row's segment if it is
     supported; if it is weak too, the supported neighbour beyond the segment's end with the
-    larger nodal area ``A`` (else beyond the other end), the same for both rows of that
-    segment; else the row stays. ``nb``: :func:`chain_neighbours`. Values, gradients and
-    Hessians are over the pair's local coordinates, which do not change."""
+    larger A (else beyond the other end), the same for both rows of that segment; else the
+    row stays. ``nb``: :func:`chain_neighbours`. Values, gradients and Hessians are over
+    the pair's local coordinates, which do not change."""
+    contributions = tuple(contributions)
+    weak, supported = classify(A, A_full)
+    c = contributions[0]
     if c.size == 0 or not weak.any():
-        return c
+        return contributions
     a, b = c.slave_nodes[:, 0], c.slave_nodes[:, 1]
     other = np.where(c.node == a, b, a)
     to = np.full(c.node.shape, -1, dtype=np.int64)
@@ -124,8 +132,12 @@ def hand_over(c: NodalContributions, A: np.ndarray, weak: np.ndarray, supported:
             to[both[ok]] = k[ok]
     move = to >= 0
     if not move.any():
-        return c
+        return contributions
     node = np.where(move, to, c.node)
+    return tuple(_moved(x, node) for x in contributions)
+
+
+def _moved(c: NodalContributions, node: np.ndarray) -> NodalContributions:
     out = NodalContributions(node, c.slave_nodes, c.master_nodes, c.value, c.grad, c._hess,
                              c.tail_nodes)
     # Petrov–Galerkin test vectors (smoothed masters) are per contribution, summed by node

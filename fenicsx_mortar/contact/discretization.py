@@ -69,7 +69,6 @@ class Mortar(Discretization):
     def __init__(self, slave: Surface, master: Surface, n_gauss: int | None = None,
                  basis: str = "standard", slave_smoothing: str = "none"):
         super().__init__(slave, master, n_gauss, basis, slave_smoothing)
-        self._neighbours = boundary.chain_neighbours(slave.seg, slave.n)
         if slave_smoothing != "none":
             probe = make_curve(slave_smoothing, slave.X, slave.seg)
             if probe.point_map is not None:
@@ -93,12 +92,9 @@ class Mortar(Discretization):
         # slave nodes barely supported by the master (sliding off its end) hand their
         # terms to their supported neighbour (boundary.py)
         A_full = boundary.full_areas(xs, s.seg, s.n)
-        weak = boundary.unsupported(A, A_full)
-        if weak.any():
-            supported = A >= boundary.SUPPORT_THRESHOLD * A_full
-            nb = self._neighbours
-            gap = boundary.hand_over(gap, A, weak, supported, nb)
-            area = boundary.hand_over(area, A, weak, supported, nb)
+        gap, handed = boundary.hand_over((gap, area), A, A_full, s.neighbours)
+        if handed is not area:      # some rows moved: the nodal areas change
+            area = handed
             A = s.owned_sum(nodal_sum(area, s.n))
         return gap, area, s.owned_sum(nodal_sum(gap, s.n)), A
 

@@ -102,8 +102,7 @@ class ContactPair:
         # their neighbours: the weighted gaps of its nodes are then complete here, also
         # where the master's edge hands terms one node on (boundary.py), and their terms
         # are inserted by this rank only (the rows of other ranks' nodes weigh 0)
-        self.my_segments = boundary.segments_to_integrate(
-            s.owned, s.seg, boundary.chain_neighbours(s.seg, s.n))
+        self.my_segments = boundary.segments_to_integrate(s.owned, s.seg, s.neighbours)
         self.layouts = assembly.Layouts()
         self.augmentations = 0
         self._first_jacobian = True

@@ -6,6 +6,7 @@ body (docs/design.md §3). Current coordinates are gathered again at every Newto
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from typing import Sequence
 
@@ -13,6 +14,7 @@ import numpy as np
 from mpi4py import MPI
 
 from .. import _dolfinx as dx
+from .boundary import chain_neighbours
 
 
 @dataclass
@@ -61,6 +63,12 @@ class Surface:
         for a, b in self.seg:  # nodes are ordered along the chains, so b follows a
             s[b] = s[a] + np.hypot(*(x[b] - x[a]))
         return s
+
+    @functools.cached_property
+    def neighbours(self) -> np.ndarray:
+        """(n, 2) chain neighbours of every node, −1 at a chain's end
+        (:func:`.boundary.chain_neighbours`)."""
+        return chain_neighbours(self.seg, self.n)
 
     def lengths(self) -> np.ndarray:
         """Segment lengths in the reference configuration."""

@@ -35,9 +35,9 @@ def kernel(xs, ss, xm, sm, basis, segments=None):
 
 
 def decide(A, xs, ss):
+    """(weak, supported, A_full, chain neighbours) of the nodal areas A."""
     A_full = boundary.full_areas(xs, ss, len(xs))
-    return (boundary.unsupported(A, A_full), A >= boundary.SUPPORT_THRESHOLD * A_full,
-            boundary.chain_neighbours(ss, len(xs)))
+    return (*boundary.classify(A, A_full), A_full, boundary.chain_neighbours(ss, len(xs)))
 
 
 def handed_over(xs_, basis, pieces=((0.0, 4.0),)):
@@ -48,8 +48,8 @@ def handed_over(xs_, basis, pieces=((0.0, 4.0),)):
     gap, area = kernel(xs, ss, xm, sm, basis)
     n = len(xs)
     A = nodal_sum(area, n)
-    weak, supported, nb = decide(A, xs, ss)
-    gap2, area2 = (boundary.hand_over(c, A, weak, supported, nb) for c in (gap, area))
+    weak, supported, A_full, nb = decide(A, xs, ss)
+    gap2, area2 = boundary.hand_over((gap, area), A, A_full, nb)
     return dict(A=A, G=nodal_sum(gap, n), A2=nodal_sum(area2, n), G2=nodal_sum(gap2, n),
                 weak=weak, supported=supported,
                 overlap=sum(max(0.0, min(b, xs_.max()) - max(a, xs_.min())) for a, b in pieces))
@@ -123,10 +123,11 @@ def test_partitioned_integration_gives_the_serial_sums(split):
     parts = [kernel(xs, ss, xm, sm, "dual", boundary.segments_to_integrate(o, ss, nb))
              for o in owners]
     A = sum(np.where(o, nodal_sum(area, n), 0.0) for o, (_, area) in zip(owners, parts))
-    weak, supported, nb = decide(A, xs, ss)
+    _, _, A_full, nb = decide(A, xs, ss)
     A2 = G2 = 0.0
-    for o, (gap, area) in zip(owners, parts):
-        A2 = A2 + np.where(o, nodal_sum(boundary.hand_over(area, A, weak, supported, nb), n), 0)
-        G2 = G2 + np.where(o, nodal_sum(boundary.hand_over(gap, A, weak, supported, nb), n), 0)
+    for o, part in zip(owners, parts):
+        gap, area = boundary.hand_over(part, A, A_full, nb)
+        A2 = A2 + np.where(o, nodal_sum(area, n), 0)
+        G2 = G2 + np.where(o, nodal_sum(gap, n), 0)
     assert np.allclose(A2, serial["A2"], rtol=0, atol=1e-14)
     assert np.allclose(G2, serial["G2"], rtol=0, atol=1e-14)
