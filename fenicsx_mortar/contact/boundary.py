@@ -101,16 +101,16 @@ def _beyond(nb: np.ndarray, node: np.ndarray, away: np.ndarray) -> np.ndarray:
 
 
 def hand_over(contributions: Sequence[NodalContributions], A: np.ndarray,
-              A_full: np.ndarray, nb: np.ndarray) -> tuple[NodalContributions, ...]:
+              weak: np.ndarray, supported: np.ndarray, nb: np.ndarray
+              ) -> tuple[NodalContributions, ...]:
     """The mortar contributions (weighted gaps and nodal areas: the same rows) with the
-    rows of weak nodes (:func:`classify` of the nodal areas ``A``, ``A_full``) moved to a
-    supported node (module docstring): the other node of the row's segment if it is
-    supported; if it is weak too, the supported neighbour beyond the segment's end with the
-    larger A (else beyond the other end), the same for both rows of that segment; else the
-    row stays. ``nb``: :func:`chain_neighbours`. Values, gradients and Hessians are over
-    the pair's local coordinates, which do not change."""
+    rows of ``weak`` nodes (:func:`classify`) moved to a ``supported`` node (module
+    docstring): the other node of the row's segment if it is supported; if it is weak too,
+    the supported neighbour beyond the segment's end with the larger nodal area ``A`` (else
+    beyond the other end), the same for both rows of that segment; else the row stays.
+    ``nb``: :func:`chain_neighbours`. Values, gradients and Hessians are over the pair's
+    local coordinates, which do not change."""
     contributions = tuple(contributions)
-    weak, supported = classify(A, A_full)
     c = contributions[0]
     if c.size == 0 or not weak.any():
         return contributions

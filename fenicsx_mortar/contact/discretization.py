@@ -91,10 +91,9 @@ class Mortar(Discretization):
         A = s.owned_sum(nodal_sum(area, s.n))
         # slave nodes barely supported by the master (sliding off its end) hand their
         # terms to their supported neighbour (boundary.py)
-        A_full = boundary.full_areas(xs, s.seg, s.n)
-        gap, handed = boundary.hand_over((gap, area), A, A_full, s.neighbours)
-        if handed is not area:      # some rows moved: the nodal areas change
-            area = handed
+        weak, supported = boundary.classify(A, boundary.full_areas(xs, s.seg, s.n))
+        if weak.any():      # the same on every rank (A is): owned_sum is collective
+            gap, area = boundary.hand_over((gap, area), A, weak, supported, s.neighbours)
             A = s.owned_sum(nodal_sum(area, s.n))
         return gap, area, s.owned_sum(nodal_sum(gap, s.n)), A
 

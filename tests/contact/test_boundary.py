@@ -49,7 +49,7 @@ def handed_over(xs_, basis, pieces=((0.0, 4.0),)):
     n = len(xs)
     A = nodal_sum(area, n)
     weak, supported, A_full, nb = decide(A, xs, ss)
-    gap2, area2 = boundary.hand_over((gap, area), A, A_full, nb)
+    gap2, area2 = boundary.hand_over((gap, area), A, weak, supported, nb)
     return dict(A=A, G=nodal_sum(gap, n), A2=nodal_sum(area2, n), G2=nodal_sum(gap2, n),
                 weak=weak, supported=supported,
                 overlap=sum(max(0.0, min(b, xs_.max()) - max(a, xs_.min())) for a, b in pieces))
@@ -123,10 +123,10 @@ def test_partitioned_integration_gives_the_serial_sums(split):
     parts = [kernel(xs, ss, xm, sm, "dual", boundary.segments_to_integrate(o, ss, nb))
              for o in owners]
     A = sum(np.where(o, nodal_sum(area, n), 0.0) for o, (_, area) in zip(owners, parts))
-    _, _, A_full, nb = decide(A, xs, ss)
+    weak, supported, _, nb = decide(A, xs, ss)
     A2 = G2 = 0.0
     for o, part in zip(owners, parts):
-        gap, area = boundary.hand_over(part, A, A_full, nb)
+        gap, area = boundary.hand_over(part, A, weak, supported, nb)
         A2 = A2 + np.where(o, nodal_sum(area, n), 0)
         G2 = G2 + np.where(o, nodal_sum(gap, n), 0)
     assert np.allclose(A2, serial["A2"], rtol=0, atol=1e-14)
