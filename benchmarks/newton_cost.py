@@ -33,6 +33,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from benchmarks.analytics import HERTZ_A, HERTZ_P0, pressure_metrics  # noqa: E402
+from benchmarks.pool import blas_in_use  # noqa: E402
 from fenicsx_mortar import Friction, load_scene, solve  # noqa: E402
 from fenicsx_mortar import run as fm_run  # noqa: E402
 
@@ -187,6 +188,7 @@ def main(argv=None) -> None:
                     help="Hertz: solves per row, the fastest reported (default 3)")
     args = ap.parse_args(argv)
     paths = ["lagrange"] + (["alm"] if args.compare else [])
+    print(f"BLAS: {blas_in_use()}")
     if "hertz" in args.only:
         hertz_table(args.repeat)
     if "rings" in args.only:

@@ -33,6 +33,19 @@ SINGLE_THREAD = {v: "1" for v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MK
 KILL_AFTER = 60.0                       # seconds between SIGTERM and SIGKILL
 
 
+def blas_in_use() -> str:
+    """The BLAS library this process has loaded (MUMPS's factorization runs on it: Debian's
+    reference BLAS is ≈ 1.5× slower there than OpenBLAS, docs/performance.md), from
+    /proc/self/maps; call it after PETSc is loaded."""
+    try:
+        maps = Path("/proc/self/maps").read_text().split()
+    except OSError:
+        return "unknown"
+    names = ("libblas.", "libopenblas", "libmkl_rt", "libblis")
+    libs = sorted({m for m in maps if m.startswith("/") and Path(m).name.startswith(names)})
+    return ", ".join(libs) or "none loaded"
+
+
 class TimeLimit(BaseException):
     """Raised in a worker by SIGTERM outside the solver's Newton loop (a BaseException, so
     that no ``except Exception`` on the way swallows it)."""

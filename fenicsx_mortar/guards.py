@@ -55,9 +55,10 @@ def _probe(settings: SolverSettings, user: dict) -> list[str]:
     """Apply the solver's options (defaults, then ``user``) to a throw-away SNES on this
     process as NewtonSolver does, and return the user options PETSc did not read. Raises
     PETSc.Error if PETSc rejects one."""
-    from .solver import _linear_solver_options
+    from .solver import _linear_solver_options, _petsc_line_search
     prefix = "fmcheck_"
-    options = {"snes_type": "newtonls", "snes_linesearch_type": settings.line_search,
+    options = {"snes_type": "newtonls",
+               "snes_linesearch_type": _petsc_line_search(settings.line_search),
                "snes_max_it": settings.max_iterations}
     options.update(_linear_solver_options(settings.linear_solver))
     options.update(user)

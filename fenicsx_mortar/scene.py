@@ -220,7 +220,7 @@ class SolverSettings:
     atol: float = 1e-9
     rtol: float = 1e-8
     max_iterations: int = 25
-    line_search: Literal["basic", "bt", "l2", "cp"] = "l2"
+    line_search: Literal["basic", "bt", "l2", "cp", "l2-full"] = "l2-full"
     linear_solver: Literal["mumps", "superlu_dist", "gmres-hypre"] = "mumps"
     quadrature_degree: int = 2  # bulk forms: full Gauss integration of P1/Q1 (2x2 on quads)
     petsc: dict[str, bool | int | float | str] = field(default_factory=dict)

@@ -21,6 +21,7 @@ from petsc4py import PETSc
 
 from . import _dolfinx as dx
 from . import guards
+from .linesearch import FullStepOrSecant
 from .scene import SolverSettings, Steps
 from .system import DisplacementSystem, MultiplierSystem
 
@@ -135,7 +136,10 @@ class NewtonSolver:
         user = {k.lstrip("-"): v for k, v in settings.petsc.items()}
         #: the line search in use (a full-Newton retry switches to "basic" and back to it)
         self.line_search = str(user.get("snes_linesearch_type", settings.line_search))
-        options = {"snes_type": "newtonls", "snes_linesearch_type": settings.line_search,
+        self._full_first = FullStepOrSecant(self._evaluate, self.snes.getFunctionNorm)
+        self._precheck_set = False
+        options = {"snes_type": "newtonls",
+                   "snes_linesearch_type": _petsc_line_search(settings.line_search),
                    "snes_max_it": settings.max_iterations, "snes_max_funcs": 100000}
         options.update(_linear_solver_options(settings.linear_solver))
         options.update({k: "" if v is True else ("false" if v is False else v)
@@ -148,6 +152,7 @@ class NewtonSolver:
         self.snes.setConvergenceTest(self._converged)
         self.snes.setFromOptions()
         self.snes.getKSP().setFromOptions()
+        self._set_precheck(self.line_search)
         # PETSc's options database is global and holds at most 512 entries: drop ours once
         # applied, or a process that builds many solvers (a study, a test session) runs out
         for k in options:
@@ -169,6 +174,11 @@ class NewtonSolver:
                                          - (self.timings.get("contact", 0.0) - c0))
 
     def _residual(self, snes, x, b) -> None:
+        if self._full_first.take(x, b):  # the line search's full step, evaluated already
+            return
+        self._evaluate(x, b)
+
+    def _evaluate(self, x, b) -> None:
         t0 = time.perf_counter()
         self._set_iterate(x)
         self._timed_bulk(lambda: self.system.assemble_residual(
@@ -268,9 +278,18 @@ class NewtonSolver:
         """Switch SNES's line search (petsc4py 3.18 has no line-search object: through the
         options database, dropped again once applied)."""
         opts = PETSc.Options()
-        opts[self._prefix + "snes_linesearch_type"] = kind
+        opts[self._prefix + "snes_linesearch_type"] = _petsc_line_search(kind)
         self.snes.setFromOptions()
         opts.delValue(self._prefix + "snes_linesearch_type")
+        self._set_precheck(kind)
+
+    def _set_precheck(self, kind: str) -> None:
+        # registered once, switched on and off: PETSc ignores a NULL precheck (petsc4py's
+        # setLineSearchPreCheck(None) then leaves a dangling context: a crash, seen)
+        if not self._precheck_set:
+            self.snes.setLineSearchPreCheck(self._full_first.precheck)
+            self._precheck_set = True
+        self._full_first.enabled = kind == "l2-full"
 
     def save_state(self) -> PETSc.Vec:
         return self.x.copy()
@@ -286,6 +305,11 @@ class NewtonSolver:
         for h in self.hooks:
             h.add_residual(b, np.zeros(0, dtype=np.int32))
         return b
+
+
+def _petsc_line_search(kind: str) -> str:
+    """PETSc's line-search type for ours: ``l2-full`` is ``basic`` with a precheck."""
+    return "basic" if kind == "l2-full" else kind
 
 
 def _linear_solver_options(name: str) -> dict:

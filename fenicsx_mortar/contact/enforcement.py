@@ -10,7 +10,10 @@ p̂ = 0 for penalty, the Uzawa multiplier for the augmented Lagrangian; for them
 terms of :mod:`.assembly` apply, R = −Σ_j p_j ∇g̃_j with the tangent through ∂p/∂g̃, ∂p/∂A
 (:class:`NodalPressure`). A node is active when its trial pressure p̂_j − ε g̃_j/A_j is
 ≥ 0: a closed gap (g̃ = 0) counts as active, so a body held only by contact is not singular
-in the first iteration. A method with other unknowns (Lagrange multipliers) overrides
+in the first iteration — and so does a gap within round-off of closed (|g̃/A| below the
+pair's ``gap_resolution``, 32 ulp of the coordinates): on a curved master a touching node's
+gap is ±1e-17, and its sign must not decide (B-spline patch test: an active set by the
+noise's sign took one Newton iteration more, and which one depended on the BLAS library). A method with other unknowns (Lagrange multipliers) overrides
 :meth:`Enforcement.residual` and :meth:`Enforcement.tangent`.
 
 A new enforcement is one subclass registered under its scene name::
@@ -69,7 +72,8 @@ class Enforcement:
 
     def pressure(self, g: np.ndarray, A: np.ndarray) -> NodalPressure:
         t = self.trial(g, A)
-        active = t >= 0.0
+        # a gap within round-off of closed is closed: the sign of noise must not decide
+        active = t >= -self.epsilon * self.gap_resolution
         As = np.where(A > 0, A, 1.0)
         eps = self.epsilon
         return NodalPressure(np.where(active, t, 0.0), active, -(eps / As), eps * g / As**2)

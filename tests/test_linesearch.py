@@ -1,0 +1,104 @@
+"""The ``l2-full`` line search (fenicsx_mortar/linesearch.py) on small algebraic systems
+driven by PETSc's SNES: away from the quadratic tail it is PETSc's ``l2`` step for step,
+in the tail it is Newton's full step at one residual evaluation per iteration."""
+import numpy as np
+import pytest
+from petsc4py import PETSc
+
+from fenicsx_mortar.linesearch import FullStepOrSecant
+
+
+def arctan_system(x):
+    """Full Newton diverges on arctan from |x| > 1.39; the weak cubic (scaled so that it does
+    not dominate the norm l2 minimizes) converges from anywhere."""
+    return np.array([np.arctan(x[0]), 0.1 * (x[1] ** 3 + 0.5 * x[1] - 3.0) + 0.01 * x[0]])
+
+
+def arctan_jacobian(x):
+    return np.array([[1.0 / (1.0 + x[0] ** 2), 0.0], [0.01, 0.1 * (3.0 * x[1] ** 2 + 0.5)]])
+
+
+def newton(x0, line_search: str, accept: float | None = None):
+    """Iterates, residual norms and the number of F evaluations of SNES newtonls."""
+    snes = PETSc.SNES().create(PETSc.COMM_SELF)
+    x, f = PETSc.Vec().createSeq(2), PETSc.Vec().createSeq(2)
+    J = PETSc.Mat().createDense([2, 2], comm=PETSc.COMM_SELF)
+    J.setUp()
+    calls = []
+
+    def evaluate(xv, fv):
+        calls.append(xv.getArray().copy())
+        fv.setArray(arctan_system(xv.getArray()))
+
+    ls = FullStepOrSecant(evaluate, snes.getFunctionNorm,
+                          **({} if accept is None else {"accept": accept}))
+
+    def residual(s, xv, fv):
+        if not ls.take(xv, fv):
+            evaluate(xv, fv)
+
+    def jacobian(s, xv, A, P):
+        A.setValues([0, 1], [0, 1], arctan_jacobian(xv.getArray()).ravel())
+        A.assemble()
+
+    iterates, scaled = [], []
+
+    def precheck(xv, yv):
+        scaled.append(ls.precheck(xv, yv))
+        return scaled[-1]
+
+    snes.setFunction(residual, f)
+    snes.setJacobian(jacobian, J)
+    snes.setMonitor(lambda s, it, norm: iterates.append((s.getSolution().getArray().copy(),
+                                                         norm)))
+    opts = PETSc.Options()
+    prefix = f"ls{id(snes)}_"
+    snes.setOptionsPrefix(prefix)
+    for k, v in {"snes_type": "newtonls", "ksp_type": "preonly", "pc_type": "lu",
+                 "snes_linesearch_type": "basic" if line_search == "l2-full" else line_search,
+                 "snes_atol": 1e-13, "snes_rtol": 1e-14, "snes_max_it": 40}.items():
+        opts[prefix + k] = v
+    snes.setFromOptions()
+    if line_search == "l2-full":
+        snes.setLineSearchPreCheck(precheck)
+    x.setArray(x0)
+    snes.solve(None, x)
+    reason = snes.getConvergedReason()
+    return reason, iterates, len(calls), scaled
+
+
+def test_full_newton_diverges_here():
+    """The set-up needs a line search: full Newton steps from x₀ = 2 do not converge."""
+    reason, *_ = newton([2.0, 3.0], "basic")
+    assert reason <= 0
+
+
+def test_without_full_steps_it_is_petsc_l2():
+    """With the full step never accepted the iterates are PETSc l2's, to the last bit (the
+    same three points and the same secant formula)."""
+    r1, ours, _, scaled = newton([2.0, 3.0], "l2-full", accept=0.0)
+    r2, petsc, *_ = newton([2.0, 3.0], "l2")
+    assert all(scaled)
+    assert r1 > 0 and r2 > 0
+    assert len(ours) == len(petsc)
+    for (xa, na), (xb, nb) in zip(ours, petsc):
+        assert np.array_equal(xa, xb) and na == nb
+
+
+@pytest.mark.parametrize("x0", [[1.5, 2.0], [2.0, 3.0], [-1.8, 0.2]])
+def test_one_evaluation_per_accepted_full_step(x0):
+    """It converges where full Newton does not; an iteration whose full step halves the
+    residual norm costs one F evaluation (three otherwise), and in the quadratic tail every
+    step is the full step, so the tail is Newton's: r_{k+1}/r_k² bounded."""
+    reason, its, n_calls, scaled = newton(x0, "l2-full")
+    assert reason > 0
+    full = scaled.count(False)
+    assert 0 < full < len(scaled)      # both kinds of step occur here
+    # one evaluation at x₀, one per full step, three per secant step
+    assert n_calls == 1 + full + 3 * (len(scaled) - full)
+    _, _, petsc_calls, _ = newton(x0, "l2")
+    assert n_calls < petsc_calls
+    norms = np.array([n for _, n in its])
+    assert not any(scaled[-3:])
+    tail = norms[norms > 1e-12][-3:]
+    assert (tail[1:] / tail[:-1] ** 2).max() < 10.0
