@@ -13,7 +13,8 @@ terms of :mod:`.assembly` apply, R = −Σ_j p_j ∇g̃_j with the tangent throu
 in the first iteration — and so does a gap within round-off of closed (|g̃/A| below the
 pair's ``gap_resolution``, 32 ulp of the coordinates): on a curved master a touching node's
 gap is ±1e-17, and its sign must not decide (B-spline patch test: an active set by the
-noise's sign took one Newton iteration more, and which one depended on the BLAS library). A method with other unknowns (Lagrange multipliers) overrides
+noise's sign took one Newton iteration more, and which one depended on the BLAS library).
+A method with other unknowns (Lagrange multipliers) overrides
 :meth:`Enforcement.residual` and :meth:`Enforcement.tangent`.
 
 A new enforcement is one subclass registered under its scene name::

@@ -112,7 +112,8 @@ def test_two_sided_smoothing_passes_the_patch_test(smoothing):
                                        "averaged-tangent", "hermite", "bspline"])
 def test_a_smoothed_flat_master_takes_the_polyline_newton_path(smoothing):
     """Every smoothing reproduces a straight master, so with multipliers the Newton iterates
-    are the polyline's: the same number, the same residuals (to round-off). The bodies start touching, so the gaps are zero up to round-off (a B-spline's are
+    are the polyline's: the same number, the same residuals (to round-off). The bodies start
+    touching, so the gaps are zero up to round-off (a B-spline's are
     ±1e-17): which nodes are active must not depend on the noise's sign."""
     from fenicsx_mortar import load_scene, solve
 
