@@ -27,8 +27,8 @@ def newton(x0, line_search: str, accept: float | None = None):
     calls = []
 
     def evaluate(xv, fv):
-        calls.append(xv.getArray().copy())
-        fv.setArray(arctan_system(xv.getArray()))
+        calls.append(xv.getArray(readonly=True).copy())
+        fv.setArray(arctan_system(xv.getArray(readonly=True)))
 
     ls = FullStepOrSecant(evaluate, snes.getFunctionNorm,
                           **({} if accept is None else {"accept": accept}))
@@ -38,7 +38,7 @@ def newton(x0, line_search: str, accept: float | None = None):
             evaluate(xv, fv)
 
     def jacobian(s, xv, A, P):
-        A.setValues([0, 1], [0, 1], arctan_jacobian(xv.getArray()).ravel())
+        A.setValues([0, 1], [0, 1], arctan_jacobian(xv.getArray(readonly=True)).ravel())
         A.assemble()
 
     iterates, scaled = [], []
@@ -49,8 +49,8 @@ def newton(x0, line_search: str, accept: float | None = None):
 
     snes.setFunction(residual, f)
     snes.setJacobian(jacobian, J)
-    snes.setMonitor(lambda s, it, norm: iterates.append((s.getSolution().getArray().copy(),
-                                                         norm)))
+    snes.setMonitor(lambda s, it, norm: iterates.append(
+        (s.getSolution().getArray(readonly=True).copy(), norm)))
     opts = PETSc.Options()
     prefix = f"ls{id(snes)}_"
     snes.setOptionsPrefix(prefix)
