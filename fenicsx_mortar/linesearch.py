@@ -1,5 +1,5 @@
 """The line search ``"l2-full"``: Newton's full step whenever it reduces the residual norm
-enough, PETSc's ``l2`` secant step otherwise (docs/newton_cost.md, "The line search").
+enough, PETSc's ``l2`` secant step otherwise (docs/newton_cost.md, "What made the difference").
 
 PETSc's ``l2`` evaluates F three times per Newton iteration (at λ = 1/2 and 1, then at the
 secant minimizer λ* of ‖F(x − λy)‖²), also in the quadratic tail, where λ* ≈ 1. Here the
