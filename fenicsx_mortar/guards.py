@@ -55,7 +55,7 @@ def _probe(settings: SolverSettings, user: dict) -> list[str]:
     """Apply the solver's options (defaults, then ``user``) to a throw-away SNES on this
     process as NewtonSolver does, and return the user options PETSc did not read. Raises
     PETSc.Error if PETSc rejects one."""
-    from .solver import _linear_solver_options, _petsc_line_search
+    from .solver import FACTOR_OPTIONS, _linear_solver_options, _petsc_line_search
     prefix = "fmcheck_"
     options = {"snes_type": "newtonls",
                "snes_linesearch_type": _petsc_line_search(settings.line_search),
@@ -69,12 +69,18 @@ def _probe(settings: SolverSettings, user: dict) -> list[str]:
     snes = PETSc.SNES().create(PETSc.COMM_SELF)
     try:
         A.setUp()
+        A.setValue(0, 0, 1.0)
+        A.setValue(1, 1, 1.0)
         A.assemble()
         snes.setOptionsPrefix(prefix)
         snes.setFunction(lambda s, x, f: x.copy(f), A.createVecLeft())
         snes.setJacobian(lambda s, x, J, P: None, A)
         snes.setFromOptions()
         snes.getKSP().setFromOptions()
+        if any(k.startswith(FACTOR_OPTIONS) for k in user):
+            # read at the first factorization: factorize the 2 x 2 identity
+            snes.getKSP().setOperators(A)
+            snes.getKSP().setUp()
         lib = _libpetsc()
         if lib is None:
             return []
@@ -94,8 +100,9 @@ def _probe(settings: SolverSettings, user: dict) -> list[str]:
 
 def check_petsc_options(settings: SolverSettings) -> None:
     """Every ``solver.petsc`` option is taken by PETSc and read when the solver is set up
-    (an option read later, e.g. ``-mat_mumps_*`` at the first factorization, or never, as
-    ``-snes_foo``, would be silently ignored). Raises SceneError naming the option."""
+    or, for ``-mat_mumps_*``, at its first factorization (an option read never, as
+    ``-snes_foo``, or not for this solver, as ``-mat_mumps_*`` with SuperLU_dist, would be
+    silently ignored). Raises SceneError naming the option."""
     user = {k.lstrip("-"): "" if v is True else ("false" if v is False else str(v))
             for k, v in settings.petsc.items()}
     if not user:
@@ -133,6 +140,21 @@ def petsc_failure(snes, error: PETSc.Error) -> str:
            f"{_mumps_info(snes.getKSP().getPC())}"
 
 
+#: MUMPS INFOG(1) values that say a workspace (integer, real, or a buffer) was too small
+_WORKSPACE = {-8, -9, -11, -12, -14, -15, -17, -20}
+
+
+def out_of_workspace(snes) -> bool:
+    """The last factorization was MUMPS's and failed for lack of workspace."""
+    pc = snes.getKSP().getPC()
+    try:
+        if pc.getType() != "lu" or pc.getFactorSolverType() != "mumps":
+            return False
+        return pc.getFactorMatrix().getMumpsInfog(1) in _WORKSPACE
+    except PETSc.Error:
+        return False
+
+
 def _mumps_info(pc) -> str:
     try:
         if pc.getType() not in ("lu", "cholesky") or pc.getFactorSolverType() != "mumps":
@@ -149,7 +171,8 @@ def _mumps_info(pc) -> str:
 
 _MUMPS = {-10: ": the matrix is numerically singular (a body or a direction left free? a slave "
                "node also held by a Dirichlet condition?)",
-          -8: ": the workspace is too small", -9: ": the workspace is too small",
+          -8: ": the workspace is too small (raise -mat_mumps_icntl_14)",
+          -9: ": the workspace is too small (raise -mat_mumps_icntl_14)",
           -13: ": out of memory", -19: ": the memory limit ICNTL(23) is too small"}
 
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 import time
+import weakref
 from dataclasses import dataclass, field
 from typing import Callable, Protocol
 
@@ -97,6 +98,8 @@ class StepResult:
     residuals: list[float] = field(default_factory=list)
     augmentations: int = 0
     reason: str = ""
+    #: the factorization ran out of workspace (MUMPS): a larger one, not a cut, is the cure
+    workspace: bool = False
 
 
 _REASONS = {v: k for k, v in vars(PETSc.SNES.ConvergedReason).items() if isinstance(v, int)}
@@ -154,9 +157,14 @@ class NewtonSolver:
         self.snes.getKSP().setFromOptions()
         self._set_precheck(self.line_search)
         # PETSc's options database is global and holds at most 512 entries: drop ours once
-        # applied, or a process that builds many solvers (a study, a test session) runs out
+        # applied, or a process that builds many solvers (a study, a test session) runs out.
+        # MUMPS reads its options at each new factorization (the first, and after a reset):
+        # those stay while the solver lives
+        self._factor_options = [prefix + k for k in options if k.startswith(FACTOR_OPTIONS)]
         for k in options:
-            opts.delValue(prefix + k)
+            if prefix + k not in self._factor_options:
+                opts.delValue(prefix + k)
+        weakref.finalize(self, _drop_options, list(self._factor_options))
 
     # -- SNES callbacks -------------------------------------------------------------
     def _set_iterate(self, x) -> None:
@@ -240,6 +248,7 @@ class NewtonSolver:
                 self.snes.solve(None, self.x)
             except PETSc.Error as e:  # a failed factorization, say: the step fails
                 res.reason = guards.petsc_failure(self.snes, e)
+                res.workspace = guards.out_of_workspace(self.snes)
                 self._reset_linear_solver()
                 return res
             self.timings["linear_solve"] = (self.timings.get("linear_solve", 0.0)
@@ -257,6 +266,7 @@ class NewtonSolver:
                              + ", ".join(f"{r:.3e}" for r in self.history)
                 if reason == PETSc.SNES.ConvergedReason.DIVERGED_LINEAR_SOLVE:
                     res.reason += "; " + guards.linear_failure(self.snes)
+                    res.workspace = guards.out_of_workspace(self.snes)
                     self._reset_linear_solver()
                 return res
             self._set_iterate(self.x)
@@ -266,6 +276,21 @@ class NewtonSolver:
                 return res
         res.reason = f"augmented Lagrangian: KKT not reached in {max_augmentations} augmentations"
         return res
+
+    def grow_workspace(self) -> int | None:
+        """After MUMPS ran out of workspace (INFOG(1) = −8, −9, …): double ICNTL(14), its
+        workspace margin in per cent, for the next factorization (the KSP is reset);
+        None when it is at MAX_WORKSPACE already."""
+        key = self._prefix + "mat_mumps_icntl_14"
+        opts = PETSc.Options()
+        now = opts.getInt(key, DEFAULT_WORKSPACE)
+        if now >= MAX_WORKSPACE:
+            return None
+        opts[key] = new = min(2 * max(now, 10), MAX_WORKSPACE)
+        if key not in self._factor_options:
+            self._factor_options.append(key)
+        self._reset_linear_solver()
+        return new
 
     def _reset_linear_solver(self) -> None:
         """Forget the factorization after a failed one: PETSc would otherwise go on with
@@ -305,6 +330,19 @@ class NewtonSolver:
         for h in self.hooks:
             h.add_residual(b, np.zeros(0, dtype=np.int32))
         return b
+
+
+#: options read at a factorization, not at set-up: kept in the database (see __init__)
+FACTOR_OPTIONS = ("mat_mumps_",)
+#: MUMPS's ICNTL(14) (workspace margin, per cent): its default, and how far
+#: :meth:`NewtonSolver.grow_workspace` raises it
+DEFAULT_WORKSPACE, MAX_WORKSPACE = 20, 640
+
+
+def _drop_options(keys: list[str]) -> None:
+    opts = PETSc.Options()
+    for k in keys:
+        opts.delValue(k)
 
 
 def _petsc_line_search(kind: str) -> str:
@@ -349,6 +387,14 @@ def run_load_steps(solver: NewtonSolver, steps: Steps, set_time: Callable[[float
             saved = solver.save_state()
             on_progress(f"step {k + 1} t={t_try:.6g} ...")
             res = _attempt(solver, set_time, t_try, max_augmentations)
+            while not res.converged and res.workspace and not should_stop():
+                # a smaller increment would not need less: grow MUMPS's workspace instead
+                grown = solver.grow_workspace()
+                if grown is None:
+                    break
+                _undo(solver, saved)
+                on_progress(f"MUMPS workspace too small: retrying with ICNTL(14) = {grown}")
+                res = _attempt(solver, set_time, t_try, max_augmentations)
             # would a failure of this increment end the run?
             below_floor, out_of_cuts = dt * 0.5 < steps.floor(), cuts >= steps.max_cuts
             retry = fallback and (below_floor or out_of_cuts or not history)

@@ -61,3 +61,24 @@ def test_a_failed_factorization_does_not_poison_the_next_solve():
     assert fresh.solve().converged
     assert np.max(np.abs(u_fresh.x.array)) > 0.1
     assert np.allclose(u.x.array, u_fresh.x.array, rtol=0.0, atol=1e-12)
+
+
+def test_out_of_workspace_grows_it_instead_of_cutting():
+    """MUMPS with a negative workspace margin (``-mat_mumps_icntl_14 = -5``, passed through
+    the scene like any MUMPS option) fails the factorization with INFOG(1) = -9 whatever
+    the increment; the step is retried with ICNTL(14) doubled from MUMPS's 20 %, not cut,
+    and gives the answer of a run without the option."""
+    import numpy as np
+    from fenicsx_mortar import load_scene
+    from conftest import ROOT
+
+    def run(petsc):
+        scene = load_scene(ROOT / "demos/scenes/patch_test.toml")
+        scene.solver.petsc = petsc
+        return solve(scene, log=lambda s: None)
+
+    plain, starved = run({}), run({"-mat_mumps_icntl_14": -5})
+    assert starved.converged, starved.message
+    assert [s["cuts"] for s in starved.steps] == [0]
+    assert np.allclose(starved.pairs[0].interface()["pressure"],
+                       plain.pairs[0].interface()["pressure"], rtol=0.0, atol=1e-12)

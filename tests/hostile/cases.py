@@ -473,7 +473,7 @@ PETSC = [
     ("unknown_pc", "-pc_type", {"-pc_type": "bogus"}, "wrong"),
     ("not_an_integer", "-snes_max_it", {"-snes_max_it": "abc"}, "wrong"),
     ("unknown_line_search", "-snes_linesearch_type", {"-snes_linesearch_type": "xyz"}, "wrong"),
-    ("never_read", "-mat_mumps_icntl_14", {"-mat_mumps_icntl_14": 50}, "ignored"),
+    ("never_read", "-mat_mumps_icntl_99", {"-mat_mumps_icntl_99": 50}, "ignored"),
     ("view_never_read", "-snes_view", {"-snes_view": True}, "ignored"),
     ("viewer_file_outside", "-snes_monitor", {"-snes_monitor": "ascii:../outside.txt"}, "wrong"),
     ("viewer_binary_file", "-ksp_view_mat", {"-ksp_view_mat": "binary:mat.bin"}, "wrong"),
