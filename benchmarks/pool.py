@@ -31,6 +31,7 @@ ROOT = Path(__file__).resolve().parents[1]
 # one thread per worker: the workers are the parallelism
 SINGLE_THREAD = {v: "1" for v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
 KILL_AFTER = 60.0                       # seconds between SIGTERM and SIGKILL
+RESEND_AFTER = 1.0                      # seconds between SIGTERMs to a job still running
 
 
 def blas_in_use() -> str:
@@ -125,6 +126,7 @@ class _Worker:
         self.job: Job | None = None
         self.t0 = self.cpu0 = 0.0
         self.terminated_at: float | None = None
+        self.signalled_at = 0.0
 
     def send(self, line: str) -> None:
         try:
@@ -232,11 +234,17 @@ def run(target: str, jobs: Iterable[Job | None], on_done: Callable[[Outcome], No
                     now = time.perf_counter()
                     over = (w.cpu() - w.cpu0 > w.job.cpu_limit or now - w.t0 > w.job.wall_limit)
                     if over and w.terminated_at is None:
-                        w.terminated_at = now
+                        w.terminated_at = w.signalled_at = now
                         w.proc.send_signal(signal.SIGTERM)
                     elif w.terminated_at is not None and now - w.terminated_at > KILL_AFTER:
                         w.proc.kill()
                         w.proc.wait()
+                    elif w.terminated_at is not None and now - w.signalled_at > RESEND_AFTER:
+                        # a worker ignores SIGTERM between jobs: one that came while it was
+                        # still clearing up the previous job (its CPU counts from the start)
+                        # was lost (seen with a 0.01 s limit: the job then ran to the end)
+                        w.signalled_at = now
+                        w.proc.send_signal(signal.SIGTERM)
             time.sleep(0.05)
     finally:
         for w in pool:

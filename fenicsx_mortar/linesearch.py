@@ -24,11 +24,14 @@ STEPTOL, MAXSTEP = 1e-12, 1e8
 
 class FullStepOrSecant:
     """A precheck for SNES's ``basic`` line search. ``evaluate(w, f)`` assembles F(w) into
-    f (and leaves the problem's state at w); ``fnorm()`` is ‖F(x)‖ at the current iterate."""
+    f (and leaves the problem's state at w); ``fnorm()`` is ‖F(x)‖ at the current iterate;
+    ``fail()`` tells SNES the line search failed (as l2's FAILED_REDUCT: no step length
+    down to STEPTOL gives a finite F)."""
 
     def __init__(self, evaluate: Callable[[PETSc.Vec, PETSc.Vec], None],
-                 fnorm: Callable[[], float], accept: float = ACCEPT):
-        self.evaluate, self.fnorm, self.accept = evaluate, fnorm, accept
+                 fnorm: Callable[[], float], accept: float = ACCEPT,
+                 fail: Callable[[], None] = lambda: None):
+        self.evaluate, self.fnorm, self.accept, self.fail = evaluate, fnorm, accept, fail
         #: off: the step is left as it is (SNES's line search alone decides)
         self.enabled = True
         self._w = self._f = None
@@ -52,10 +55,13 @@ class FullStepOrSecant:
         if math.isfinite(f1) and f1 < self.accept * f0:
             self._cached = True  # basic evaluates F at exactly this w next
             return False
-        while not math.isfinite(f1):  # as l2: halve until F is defined
+        maxstep = MAXSTEP
+        while not math.isfinite(f1):  # as l2: halve until F is defined, never step back there
+            maxstep = 0.95 * lam
             lam *= 0.5
             if lam <= STEPTOL:
                 y.scale(lam)
+                self.fail()
                 return True
             f1 = self._norm_at(x, y, lam)
         fmid = self._norm_at(x, y, 0.5 * lam)
@@ -71,10 +77,14 @@ class FullStepOrSecant:
             new = lam + d1 / d2
         if new < STEPTOL:
             new = 0.5 * lam
-        if not math.isfinite(new) or new > MAXSTEP:
+        if not math.isfinite(new) or new > maxstep:
             new = lam
         y.scale(new)
         return True
+
+    def forget(self) -> None:
+        """Drop the cached F (a new solve, another line search: it may not be asked for)."""
+        self._cached = False
 
     def take(self, x: PETSc.Vec, f: PETSc.Vec) -> bool:
         """F(x) from the precheck's full-step evaluation if x is that point (then True)."""

@@ -139,7 +139,10 @@ class NewtonSolver:
         user = {k.lstrip("-"): v for k, v in settings.petsc.items()}
         #: the line search in use (a full-Newton retry switches to "basic" and back to it)
         self.line_search = str(user.get("snes_linesearch_type", settings.line_search))
-        self._full_first = FullStepOrSecant(self._evaluate, self.snes.getFunctionNorm)
+        self._full_first = FullStepOrSecant(
+            self._evaluate, self.snes.getFunctionNorm,
+            fail=lambda: self.snes.setConvergedReason(
+                PETSc.SNES.ConvergedReason.DIVERGED_LINE_SEARCH))
         self._precheck_set = False
         options = {"snes_type": "newtonls",
                    "snes_linesearch_type": _petsc_line_search(settings.line_search),
@@ -164,7 +167,11 @@ class NewtonSolver:
         for k in options:
             if prefix + k not in self._factor_options:
                 opts.delValue(prefix + k)
-        weakref.finalize(self, _drop_options, list(self._factor_options))
+        self._token = object()
+        for k in self._factor_options:
+            _OWNER[k] = self._token
+        # (grow_workspace adds to the list; the finalizer sees it)
+        weakref.finalize(self, _drop_options, self._factor_options, self._token)
 
     # -- SNES callbacks -------------------------------------------------------------
     def _set_iterate(self, x) -> None:
@@ -242,6 +249,7 @@ class NewtonSolver:
             self.history = []
             self._cycle = None
             self.monitor.begin_solve()
+            self._full_first.forget()
             self._callback_time = 0.0
             t0 = time.perf_counter()
             try:
@@ -287,6 +295,7 @@ class NewtonSolver:
         if now >= MAX_WORKSPACE:
             return None
         opts[key] = new = min(2 * max(now, 10), MAX_WORKSPACE)
+        _OWNER[key] = self._token
         if key not in self._factor_options:
             self._factor_options.append(key)
         self._reset_linear_solver()
@@ -315,6 +324,7 @@ class NewtonSolver:
             self.snes.setLineSearchPreCheck(self._full_first.precheck)
             self._precheck_set = True
         self._full_first.enabled = kind == "l2-full"
+        self._full_first.forget()
 
     def save_state(self) -> PETSc.Vec:
         return self.x.copy()
@@ -336,13 +346,20 @@ class NewtonSolver:
 FACTOR_OPTIONS = ("mat_mumps_",)
 #: MUMPS's ICNTL(14) (workspace margin, per cent): its default, and how far
 #: :meth:`NewtonSolver.grow_workspace` raises it
-DEFAULT_WORKSPACE, MAX_WORKSPACE = 20, 640
+DEFAULT_WORKSPACE, MAX_WORKSPACE = 20, 160
 
 
-def _drop_options(keys: list[str]) -> None:
+#: which live solver set a kept option last: two solvers under one user prefix share
+#: the keys, and a dead one must not take the live one's options with it
+_OWNER: dict[str, object] = {}
+
+
+def _drop_options(keys: list[str], token: object) -> None:
     opts = PETSc.Options()
     for k in keys:
-        opts.delValue(k)
+        if _OWNER.get(k) is token:
+            opts.delValue(k)
+            del _OWNER[k]
 
 
 def _petsc_line_search(kind: str) -> str:

@@ -49,9 +49,10 @@ if [ ${#missing[@]} -gt 0 ]; then
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -q "${missing[@]}"
 fi
 
-blas=$(update-alternatives --query libblas.so.3-x86_64-linux-gnu 2>/dev/null | sed -n 's/^Value: //p')
+blas=$(update-alternatives --query libblas.so.3-x86_64-linux-gnu 2>/dev/null |
+       sed -n 's/^Status: //p; s/^Value: //p' | tr '\n' ' ' || true)
 case "$blas" in
-  */blas/libblas.so.3)
+  "manual "*/blas/libblas.so.3*)
     echo "setup: note: the system BLAS is the reference one (pinned with update-alternatives);" \
          "'update-alternatives --auto libblas.so.3-x86_64-linux-gnu' (and liblapack.so.3-...)" \
          "selects OpenBLAS, with which the linear solves are 1.5x faster" ;;

@@ -54,11 +54,14 @@ def newton(x0, line_search: str, accept: float | None = None):
     opts = PETSc.Options()
     prefix = f"ls{id(snes)}_"
     snes.setOptionsPrefix(prefix)
-    for k, v in {"snes_type": "newtonls", "ksp_type": "preonly", "pc_type": "lu",
-                 "snes_linesearch_type": "basic" if line_search == "l2-full" else line_search,
-                 "snes_atol": 1e-13, "snes_rtol": 1e-14, "snes_max_it": 40}.items():
+    keys = {"snes_type": "newtonls", "ksp_type": "preonly", "pc_type": "lu",
+            "snes_linesearch_type": "basic" if line_search == "l2-full" else line_search,
+            "snes_atol": 1e-13, "snes_rtol": 1e-14, "snes_max_it": 40}
+    for k, v in keys.items():
         opts[prefix + k] = v
     snes.setFromOptions()
+    for k in keys:
+        opts.delValue(prefix + k)
     if line_search == "l2-full":
         snes.setLineSearchPreCheck(precheck)
     x.setArray(x0)
@@ -102,3 +105,72 @@ def test_one_evaluation_per_accepted_full_step(x0):
     assert not any(scaled[-3:])
     tail = norms[norms > 1e-12][-3:]
     assert (tail[1:] / tail[:-1] ** 2).max() < 10.0
+
+
+def _solve_log(line_search: str, domain_everywhere: bool = True):
+    """F = (log x₀ − log 3, x₁ − 1) from x₀ = 10: the full Newton step lands at x₀ < 0,
+    where F is NaN. With ``domain_everywhere`` False, F is NaN off the starting point."""
+    snes = PETSc.SNES().create(PETSc.COMM_SELF)
+    x, f = PETSc.Vec().createSeq(2), PETSc.Vec().createSeq(2)
+    J = PETSc.Mat().createDense([2, 2], comm=PETSc.COMM_SELF)
+    J.setUp()
+
+    def evaluate(xv, fv):
+        a = xv.getArray(readonly=True)
+        with np.errstate(invalid="ignore"):
+            v = np.array([np.log(a[0]) - np.log(3.0), a[1] - 1.0])
+        if not domain_everywhere and a[0] != 10.0:
+            v[:] = np.nan
+        fv.setArray(v)
+
+    reasons = PETSc.SNES.ConvergedReason
+    ls = FullStepOrSecant(evaluate, snes.getFunctionNorm,
+                          fail=lambda: snes.setConvergedReason(reasons.DIVERGED_LINE_SEARCH))
+
+    def residual(s, xv, fv):
+        if not ls.take(xv, fv):
+            evaluate(xv, fv)
+
+    def jacobian(s, xv, A, P):
+        A.setValues([0, 1], [0, 1], [1.0 / xv.getArray(readonly=True)[0], 0.0, 0.0, 1.0])
+        A.assemble()
+
+    iterates = []
+    snes.setFunction(residual, f)
+    snes.setJacobian(jacobian, J)
+    snes.setMonitor(lambda s, it, norm: iterates.append(
+        s.getSolution().getArray(readonly=True)[0]))
+    prefix = f"lslog{id(snes)}_"
+    snes.setOptionsPrefix(prefix)
+    opts = PETSc.Options()
+    keys = {"snes_type": "newtonls", "ksp_type": "preonly", "pc_type": "lu",
+            "snes_linesearch_type": "basic" if line_search == "l2-full" else line_search,
+            "snes_atol": 1e-12, "snes_rtol": 1e-14, "snes_max_it": 40}
+    for k, v in keys.items():
+        opts[prefix + k] = v
+    snes.setFromOptions()
+    for k in keys:
+        opts.delValue(prefix + k)
+    if line_search == "l2-full":
+        snes.setLineSearchPreCheck(ls.precheck)
+    x.setArray([10.0, 1.0])
+    snes.solve(None, x)
+    return snes.getConvergedReason(), iterates
+
+
+def test_after_a_nan_the_step_stays_short_of_it():
+    """The full step gives NaN: as l2, halve, and never take a secant step beyond 0.95 of
+    the step that gave NaN (without that cap the secant step went to λ = 2.05, back into
+    the NaN, and Newton stopped with DIVERGED_FNORM_NAN); the first step is l2's."""
+    r_ours, ours = _solve_log("l2-full")
+    r_petsc, petsc = _solve_log("l2")
+    assert r_ours > 0 and r_petsc > 0
+    assert ours[1] == petsc[1] and abs(ours[-1] - 3.0) < 1e-12
+
+
+def test_no_finite_step_is_a_line_search_failure():
+    """F is NaN at every step length down to 1e-12: SNES stops with DIVERGED_LINE_SEARCH,
+    as with l2 (not a success with a step of 1e-12)."""
+    reasons = PETSc.SNES.ConvergedReason
+    assert _solve_log("l2-full", domain_everywhere=False)[0] == reasons.DIVERGED_LINE_SEARCH
+    assert _solve_log("l2", domain_everywhere=False)[0] == reasons.DIVERGED_LINE_SEARCH

@@ -63,7 +63,7 @@ def test_a_failed_factorization_does_not_poison_the_next_solve():
     assert np.allclose(u.x.array, u_fresh.x.array, rtol=0.0, atol=1e-12)
 
 
-def test_out_of_workspace_grows_it_instead_of_cutting():
+def test_out_of_workspace_grows_it_instead_of_cutting(monkeypatch):
     """MUMPS with a negative workspace margin (``-mat_mumps_icntl_14 = -5``, passed through
     the scene like any MUMPS option) fails the factorization with INFOG(1) = -9 whatever
     the increment; the step is retried with ICNTL(14) doubled from MUMPS's 20 %, not cut,
@@ -77,7 +77,13 @@ def test_out_of_workspace_grows_it_instead_of_cutting():
         scene.solver.petsc = petsc
         return solve(scene, log=lambda s: None)
 
+    from fenicsx_mortar import solver
+    grown = []
+    grow = solver.NewtonSolver.grow_workspace
+    monkeypatch.setattr(solver.NewtonSolver, "grow_workspace",
+                        lambda self: grown.append(grow(self)) or grown[-1])
     plain, starved = run({}), run({"-mat_mumps_icntl_14": -5})
+    assert grown == [20]                    # one retry, from -5 to MUMPS's default margin
     assert starved.converged, starved.message
     assert [s["cuts"] for s in starved.steps] == [0]
     assert np.allclose(starved.pairs[0].interface()["pressure"],
