@@ -146,27 +146,26 @@ _WORKSPACE = {-8, -9, -11, -12, -14, -15, -17, -20}
 
 def out_of_workspace(snes) -> bool:
     """The last factorization was MUMPS's and failed for lack of workspace."""
-    pc = snes.getKSP().getPC()
+    return _mumps_infog(snes.getKSP().getPC())[0] in _WORKSPACE
+
+
+def _mumps_infog(pc) -> tuple[int, int]:
+    """MUMPS's INFOG(1), INFOG(2) of the PC's factorization ((0, 0): not MUMPS's)."""
     try:
-        if pc.getType() != "lu" or pc.getFactorSolverType() != "mumps":
-            return False
-        return pc.getFactorMatrix().getMumpsInfog(1) in _WORKSPACE
+        if pc.getType() not in ("lu", "cholesky") or pc.getFactorSolverType() != "mumps":
+            return 0, 0
+        F = pc.getFactorMatrix()
+        return F.getMumpsInfog(1), F.getMumpsInfog(2)
     except PETSc.Error:
-        return False
+        return 0, 0
 
 
 def _mumps_info(pc) -> str:
-    try:
-        if pc.getType() not in ("lu", "cholesky") or pc.getFactorSolverType() != "mumps":
-            return ""
-        F = pc.getFactorMatrix()
-        info = F.getMumpsInfog(1)
-    except PETSc.Error:
-        return ""
+    info, detail = _mumps_infog(pc)
     if info >= 0:
         return ""
     return f", MUMPS factorization failed: INFOG(1) = {info}, INFOG(2) = " \
-           f"{F.getMumpsInfog(2)}{_MUMPS.get(info, '')}"
+           f"{detail}{_MUMPS.get(info, '')}"
 
 
 _MUMPS = {-10: ": the matrix is numerically singular (a body or a direction left free? a slave "

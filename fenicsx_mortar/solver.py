@@ -143,7 +143,6 @@ class NewtonSolver:
             self._evaluate, self.snes.getFunctionNorm,
             fail=lambda: self.snes.setConvergedReason(
                 PETSc.SNES.ConvergedReason.DIVERGED_LINE_SEARCH))
-        self._precheck_set = False
         options = {"snes_type": "newtonls",
                    "snes_linesearch_type": _petsc_line_search(settings.line_search),
                    "snes_max_it": settings.max_iterations, "snes_max_funcs": 100000}
@@ -158,6 +157,10 @@ class NewtonSolver:
         self.snes.setConvergenceTest(self._converged)
         self.snes.setFromOptions()
         self.snes.getKSP().setFromOptions()
+        # registered once, switched on and off (_set_precheck): PETSc ignores a NULL
+        # precheck, and petsc4py's setLineSearchPreCheck(None) then leaves a dangling
+        # context (a crash, seen)
+        self.snes.setLineSearchPreCheck(self._full_first.precheck)
         self._set_precheck(self.line_search)
         # PETSc's options database is global and holds at most 512 entries: drop ours once
         # applied, or a process that builds many solvers (a study, a test session) runs out.
@@ -318,11 +321,6 @@ class NewtonSolver:
         self._set_precheck(kind)
 
     def _set_precheck(self, kind: str) -> None:
-        # registered once, switched on and off: PETSc ignores a NULL precheck (petsc4py's
-        # setLineSearchPreCheck(None) then leaves a dangling context: a crash, seen)
-        if not self._precheck_set:
-            self.snes.setLineSearchPreCheck(self._full_first.precheck)
-            self._precheck_set = True
         self._full_first.enabled = kind == "l2-full"
         self._full_first.forget()
 

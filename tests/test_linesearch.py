@@ -18,8 +18,24 @@ def arctan_jacobian(x):
     return np.array([[1.0 / (1.0 + x[0] ** 2), 0.0], [0.01, 0.1 * (3.0 * x[1] ** 2 + 0.5)]])
 
 
-def newton(x0, line_search: str, accept: float | None = None):
-    """Iterates, residual norms and the number of F evaluations of SNES newtonls."""
+def log_system(x, domain_everywhere: bool = True):
+    """(log x₀ − log 3, x₁ − 1): from x₀ = 10 the full Newton step lands at x₀ < 0, where
+    F is NaN. With ``domain_everywhere`` False, F is NaN off the starting point."""
+    with np.errstate(invalid="ignore"):
+        v = np.array([np.log(x[0]) - np.log(3.0), x[1] - 1.0])
+    if not domain_everywhere and x[0] != 10.0:
+        v[:] = np.nan
+    return v
+
+
+def log_jacobian(x):
+    return np.array([[1.0 / x[0], 0.0], [0.0, 1.0]])
+
+
+def newton(x0, line_search: str, accept: float | None = None, system=arctan_system,
+           jacobian=arctan_jacobian, atol: float = 1e-13):
+    """Reason, iterates with their residual norms, the number of F evaluations and, per
+    ``l2-full`` iteration, whether the step was scaled — of SNES newtonls."""
     snes = PETSc.SNES().create(PETSc.COMM_SELF)
     x, f = PETSc.Vec().createSeq(2), PETSc.Vec().createSeq(2)
     J = PETSc.Mat().createDense([2, 2], comm=PETSc.COMM_SELF)
@@ -28,17 +44,19 @@ def newton(x0, line_search: str, accept: float | None = None):
 
     def evaluate(xv, fv):
         calls.append(xv.getArray(readonly=True).copy())
-        fv.setArray(arctan_system(xv.getArray(readonly=True)))
+        fv.setArray(system(xv.getArray(readonly=True)))
 
+    reasons = PETSc.SNES.ConvergedReason
     ls = FullStepOrSecant(evaluate, snes.getFunctionNorm,
+                          fail=lambda: snes.setConvergedReason(reasons.DIVERGED_LINE_SEARCH),
                           **({} if accept is None else {"accept": accept}))
 
     def residual(s, xv, fv):
         if not ls.take(xv, fv):
             evaluate(xv, fv)
 
-    def jacobian(s, xv, A, P):
-        A.setValues([0, 1], [0, 1], arctan_jacobian(xv.getArray(readonly=True)).ravel())
+    def assemble_jacobian(s, xv, A, P):
+        A.setValues([0, 1], [0, 1], jacobian(xv.getArray(readonly=True)).ravel())
         A.assemble()
 
     iterates, scaled = [], []
@@ -48,7 +66,7 @@ def newton(x0, line_search: str, accept: float | None = None):
         return scaled[-1]
 
     snes.setFunction(residual, f)
-    snes.setJacobian(jacobian, J)
+    snes.setJacobian(assemble_jacobian, J)
     snes.setMonitor(lambda s, it, norm: iterates.append(
         (s.getSolution().getArray(readonly=True).copy(), norm)))
     opts = PETSc.Options()
@@ -56,7 +74,7 @@ def newton(x0, line_search: str, accept: float | None = None):
     snes.setOptionsPrefix(prefix)
     keys = {"snes_type": "newtonls", "ksp_type": "preonly", "pc_type": "lu",
             "snes_linesearch_type": "basic" if line_search == "l2-full" else line_search,
-            "snes_atol": 1e-13, "snes_rtol": 1e-14, "snes_max_it": 40}
+            "snes_atol": atol, "snes_rtol": 1e-14, "snes_max_it": 40}
     for k, v in keys.items():
         opts[prefix + k] = v
     snes.setFromOptions()
@@ -108,54 +126,10 @@ def test_one_evaluation_per_accepted_full_step(x0):
 
 
 def _solve_log(line_search: str, domain_everywhere: bool = True):
-    """F = (log x₀ − log 3, x₁ − 1) from x₀ = 10: the full Newton step lands at x₀ < 0,
-    where F is NaN. With ``domain_everywhere`` False, F is NaN off the starting point."""
-    snes = PETSc.SNES().create(PETSc.COMM_SELF)
-    x, f = PETSc.Vec().createSeq(2), PETSc.Vec().createSeq(2)
-    J = PETSc.Mat().createDense([2, 2], comm=PETSc.COMM_SELF)
-    J.setUp()
-
-    def evaluate(xv, fv):
-        a = xv.getArray(readonly=True)
-        with np.errstate(invalid="ignore"):
-            v = np.array([np.log(a[0]) - np.log(3.0), a[1] - 1.0])
-        if not domain_everywhere and a[0] != 10.0:
-            v[:] = np.nan
-        fv.setArray(v)
-
-    reasons = PETSc.SNES.ConvergedReason
-    ls = FullStepOrSecant(evaluate, snes.getFunctionNorm,
-                          fail=lambda: snes.setConvergedReason(reasons.DIVERGED_LINE_SEARCH))
-
-    def residual(s, xv, fv):
-        if not ls.take(xv, fv):
-            evaluate(xv, fv)
-
-    def jacobian(s, xv, A, P):
-        A.setValues([0, 1], [0, 1], [1.0 / xv.getArray(readonly=True)[0], 0.0, 0.0, 1.0])
-        A.assemble()
-
-    iterates = []
-    snes.setFunction(residual, f)
-    snes.setJacobian(jacobian, J)
-    snes.setMonitor(lambda s, it, norm: iterates.append(
-        s.getSolution().getArray(readonly=True)[0]))
-    prefix = f"lslog{id(snes)}_"
-    snes.setOptionsPrefix(prefix)
-    opts = PETSc.Options()
-    keys = {"snes_type": "newtonls", "ksp_type": "preonly", "pc_type": "lu",
-            "snes_linesearch_type": "basic" if line_search == "l2-full" else line_search,
-            "snes_atol": 1e-12, "snes_rtol": 1e-14, "snes_max_it": 40}
-    for k, v in keys.items():
-        opts[prefix + k] = v
-    snes.setFromOptions()
-    for k in keys:
-        opts.delValue(prefix + k)
-    if line_search == "l2-full":
-        snes.setLineSearchPreCheck(ls.precheck)
-    x.setArray([10.0, 1.0])
-    snes.solve(None, x)
-    return snes.getConvergedReason(), iterates
+    """Reason and x₀ iterates from x = (10, 1) on :func:`log_system`."""
+    reason, its, _, _ = newton([10.0, 1.0], line_search, atol=1e-12, jacobian=log_jacobian,
+                               system=lambda x: log_system(x, domain_everywhere))
+    return reason, [xk[0] for xk, _ in its]
 
 
 def test_after_a_nan_the_step_stays_short_of_it():
