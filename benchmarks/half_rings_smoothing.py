@@ -134,13 +134,15 @@ def interior_forces(pair) -> dict:
                 Fx_end=float(np.sum((1.0 - w) * F[:, 0])), Rx_all=float(-np.sum(F[:, 0])))
 
 
-def run_one(name: str, mu: float, smoothing: str, wall_limit: float) -> dict:
-    """One full load path in this (worker) process; returns the per-step rows and the verdict."""
+def run_one(name: str, mu: float, smoothing: str, wall_limit: float,
+            mesh: dict | None = None, out_root: Path = OUT) -> dict:
+    """One full load path in this (worker) process; returns the per-step rows and the verdict.
+    ``mesh``: generator parameters replacing the scene's (meshes/half_rings.py)."""
     sys.path.insert(0, str(ROOT / "demos"))
     from demo_half_rings import hub_moment  # the demo's moment of the hub forces
     from fenicsx_mortar import Friction, load_scene, solve
 
-    out = OUT / name
+    out = Path(out_root) / name
     out.mkdir(parents=True, exist_ok=True)
     logf = open(out / "run.log", "w")
 
@@ -151,6 +153,8 @@ def run_one(name: str, mu: float, smoothing: str, wall_limit: float) -> dict:
     scene = load_scene(ROOT / "demos" / "scenes" / "half_rings.toml")
     scene.contacts[0].friction = Friction(law="coulomb", mu=mu) if mu > 0 else Friction()
     scene.contacts[0].smoothing = smoothing
+    if mesh:
+        scene.mesh.params = dict(mesh)
     rows: list[dict] = []
     misfit = [0.0]  # max |−Σ nodal contact F_x − hub R_x| / max(|R_x|, 1) over the steps
     t0, c0 = time.perf_counter(), time.process_time()
