@@ -8,6 +8,8 @@ kept), 2 bad input (one message naming the problem, no traceback).
 from __future__ import annotations
 
 import argparse
+import errno
+import os
 import signal
 import sys
 import threading
@@ -29,6 +31,12 @@ def _directory(text: str) -> Path:
     if not text.strip():
         raise argparse.ArgumentTypeError("an empty name (the outputs would go into the "
                                          "working directory; give a directory)")
+    try:
+        os.stat(text)
+    except OSError as e:
+        if e.errno == errno.ENAMETOOLONG:
+            raise argparse.ArgumentTypeError("the file name is too long for the file "
+                                             "system") from None
     return Path(text)
 
 

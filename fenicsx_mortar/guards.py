@@ -228,6 +228,10 @@ class StepGuard:
         if reason != PETSc.SNES.ConvergedReason.CONVERGED_FNORM_ABS:
             return (f"the SNES stopped with reason {reason}, not by the convergence rule "
                     "(a PETSc option replaced it?)")
+        for h in self.solver.hooks:
+            why = getattr(h, "passed_through", lambda: None)()
+            if why:
+                return why
         return self.inverted()
 
     def inverted(self) -> str | None:

@@ -40,6 +40,26 @@ def prepare_out(out: Path) -> None:
         raise SceneError(f"{key}: cannot write there ({e.strerror})") from None
 
 
+#: what a run writes into ``--out``
+OWN_FILES = ("summary.json", "scene.json", "checkpoint.npz", "solution.xdmf", "solution.h5",
+             "solution_from_step_*.xdmf", "solution_from_step_*.h5", "reactions.png",
+             "convergence.png", "interface/*_[0-9][0-9][0-9][0-9].csv",
+             "interface/*_pressure.png")
+
+
+def clear_previous(out: Path) -> int:
+    """Remove a previous run's files from ``out`` (rank 0, before a new run writes there):
+    a run without XDMF or with other pair names would otherwise leave them beside its own
+    summary, to be taken for this run's. Only the names in OWN_FILES go. Returns how many."""
+    removed = 0
+    for pattern in OWN_FILES:
+        for p in out.glob(pattern):
+            if p.is_file() or p.is_symlink():
+                p.unlink()
+                removed += 1
+    return removed
+
+
 def write_atomic(path: Path, data: str | bytes) -> None:
     """Write via a temporary file and rename, so a reader never sees half a file and a
     failed write (a full disk) leaves the previous file and no temporary one. Raises

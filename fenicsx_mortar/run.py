@@ -136,6 +136,9 @@ def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM
     kept = {"checkpoint.npz": k0, "summary.json": k0}
     if out is not None:
         if not restart:
+            cleared = on_rank0(comm, lambda: output.clear_previous(out))
+            if cleared:
+                log(f"  removed {cleared} files of a previous run in {out}")
             _write(out, comm, kept, lambda: output.write_atomic(out / "scene.json",
                                                                 scene_to_json(scene)),
                    rank0_only=True)

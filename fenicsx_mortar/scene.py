@@ -434,11 +434,18 @@ class Scene:
                     raise SceneError(f"{key}: the same slave and master surfaces as "
                                      f"contacts[{j}] ({other.name!r}): the contact would be "
                                      "counted twice (with multipliers: a singular system)")
+                if (set(_as_list(c.slave)) & set(_as_list(other.master))
+                        and set(_as_list(c.master)) & set(_as_list(other.slave))):
+                    raise SceneError(f"{key}: the surfaces of contacts[{j}] ({other.name!r}) "
+                                     "with slave and master swapped: the contact would be "
+                                     "counted twice (with multipliers: a singular system)")
             e = c.enforcement
-            if getattr(ENFORCEMENTS[e.type], "unknowns", 0) and \
-                    self.solver.linear_solver != "mumps":
+            lu = self.solver.petsc.get("-pc_factor_mat_solver_type")
+            setting = ("solver.linear_solver", self.solver.linear_solver) if lu is None else \
+                ("solver.petsc -pc_factor_mat_solver_type", lu)
+            if getattr(ENFORCEMENTS[e.type], "unknowns", 0) and setting[1] != "mumps":
                 raise SceneError(
-                    f"solver.linear_solver = {self.solver.linear_solver!r}: cannot solve the "
+                    f"{setting[0]} = {setting[1]!r}: cannot solve the "
                     f"saddle-point system of {key}'s multipliers (enforcement "
                     f"{e.type!r}: zero pivots that need MUMPS's pivoting); use 'mumps', or "
                     "enforcement 'alm' or 'penalty'")
@@ -449,8 +456,9 @@ class Scene:
             _check_range(e.tolerance, f"{key}.enforcement.tolerance", 1e-14, 1e-2,
                          "a KKT residual relative to the pressure scale: below 1e-14 it is "
                          "round-off, above 1e-2 the pressures are not converged")
-            _check_range(e.max_augmentations, f"{key}.enforcement.max_augmentations", 0,
-                         LIMITS["max_augmentations"])
+            _check_range(e.max_augmentations, f"{key}.enforcement.max_augmentations", 1,
+                         LIMITS["max_augmentations"], "0 would fail every step that needs "
+                         "a multiplier update or a penalty raise")
             if c.friction.mu < 0:
                 raise SceneError(f"{key}.friction.mu = {c.friction.mu}: must be >= 0")
             if c.friction.law == "none" and c.friction.mu != 0:
@@ -643,9 +651,27 @@ def _check_petsc_option(k: str, v) -> None:
     if isinstance(v, str) and not re.fullmatch(r"[A-Za-z0-9_.+-]*", v):
         raise SceneError(f"solver.petsc: {k} = {v!r}: a value is a word or a number (no "
                          "viewer files: outputs go to --out only)")
+    if isinstance(v, str) and v.lower() in _FILE_VIEWERS:
+        raise SceneError(f"solver.petsc: {k} = {v!r}: a {v} viewer writes a file into the "
+                         "working directory (outputs go to --out only); 'ascii' prints")
+    if k in _MUMPS_STREAMS and not (isinstance(v, (int, float)) and (v <= 0 or v == 6)):
+        raise SceneError(f"solver.petsc: {k} = {v!r}: a MUMPS output stream other than 6 "
+                         "(the log) or <= 0 (none) writes a fort.N file into the working "
+                         "directory")
+    if k in _OWN_KEYS:
+        raise SceneError(f"solver.petsc: {k}: set {_OWN_KEYS[k]} instead (the package's "
+                         "Newton loop and convergence rule use the scene's value)")
 
 
 _WINDOWS = ("draw", "x", "socket", "saws", "glvis")
+#: PETSc viewer types that write a file of a default name (binaryoutput, output.h5, ...)
+_FILE_VIEWERS = ("binary", "hdf5", "vtk", "vtu", "matlab", "adios", "adios2", "exodusii",
+                 "cgns", "mathematica", "vu", "pythonviewer", "pvtk")
+#: SNES settings the package's Newton loop and convergence rule replace: the scene's keys
+_OWN_KEYS = {"-snes_max_it": "solver.max_iterations", "-snes_atol": "solver.atol",
+             "-snes_rtol": "solver.rtol"}
+#: MUMPS ICNTL(1-3): streams for errors, warnings, statistics (Fortran units)
+_MUMPS_STREAMS = ("-mat_mumps_icntl_1", "-mat_mumps_icntl_2", "-mat_mumps_icntl_3")
 
 
 # --------------------------------------------------------------------------- TOML → dataclasses
@@ -696,7 +722,7 @@ def read_text(path: Path, what: str) -> str:
     except OSError as e:
         raise SceneError(f"{path}: cannot read {what} ({e.strerror})") from None
     try:
-        return raw.decode("utf-8")
+        return raw.decode("utf-8-sig")  # an editor's byte-order mark is not part of the text
     except UnicodeDecodeError as e:
         raise SceneError(f"{path}: not UTF-8 text (byte 0x{raw[e.start]:02x} at offset "
                          f"{e.start})") from None

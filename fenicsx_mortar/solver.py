@@ -388,11 +388,11 @@ def run_load_steps(solver: NewtonSolver, steps: Steps, set_time: Callable[[float
     fallback = line_search != "basic"
     history = any(h.path_dependent for h in solver.hooks)
     for target in steps.targets():
-        if target <= t + 1e-14 * max(1.0, abs(target)):
+        if _reached(t, target):
             continue
         dt = target - t
         cuts = 0
-        while t < target - 1e-14 * max(1.0, abs(target)):
+        while not _reached(t, target):
             sig = should_stop()
             if sig:
                 set_time(t)
@@ -451,6 +451,12 @@ def run_load_steps(solver: NewtonSolver, steps: Steps, set_time: Callable[[float
             dt *= 0.5
             on_progress(f"cut: {res.reason}; retrying with increment {dt:.3g}")
     return True, f"completed {k} steps up to pseudo-time {t:.6g}"
+
+
+def _reached(t: float, target: float) -> bool:
+    """t is at ``target`` up to round-off, relative to their size: a scene on pseudo-times of
+    1e-15 is run, not skipped as if at 0."""
+    return t >= target - 1e-14 * max(abs(t), abs(target))
 
 
 def _undo(solver: NewtonSolver, saved: PETSc.Vec) -> None:

@@ -38,3 +38,23 @@ def test_failed_run_keeps_converged_steps(tmp_path):
     assert len(s["steps"]) >= 2 and s["steps"][-1]["time"] < 1.0
     assert "stopped at pseudo-time" in s["message"]
     assert "Traceback" not in proc.stderr
+
+
+def test_a_new_run_replaces_the_previous_runs_files(tmp_path):
+    """A second run into the same --out (other pair name, no XDMF, no plots, fewer steps)
+    leaves none of the first run's outputs beside its own; other files stay."""
+    base = (ROOT / "tests/bad_input/_base.toml").read_text()
+    first, second = tmp_path / "first.toml", tmp_path / "second.toml"
+    first.write_text(base.replace('name = "c"', 'name = "old"').replace("count = 2", "count = 3"))
+    second.write_text(base.replace("count = 2", "count = 1") + "[output]\nxdmf = false\n"
+                      "plots = false\n")
+    out = tmp_path / "out"
+    assert run_cli("run", str(first), "--out", str(out)).returncode == 0
+    assert (out / "interface" / "old_0003.csv").is_file() and (out / "solution.h5").is_file()
+    (out / "notes.txt").write_text("mine")
+    proc = run_cli("run", str(second), "--out", str(out))
+    assert proc.returncode == 0, proc.stderr
+    left = sorted(str(p.relative_to(out)) for p in out.rglob("*") if p.is_file())
+    assert left == ["checkpoint.npz", "interface/c_0001.csv", "notes.txt", "scene.json",
+                    "summary.json"], left
+    assert len(json.loads((out / "summary.json").read_text())["steps"]) == 1

@@ -88,3 +88,27 @@ def test_out_of_workspace_grows_it_instead_of_cutting(monkeypatch):
     assert [s["cuts"] for s in starved.steps] == [0]
     assert np.allclose(starved.pairs[0].interface()["pressure"],
                        plain.pairs[0].interface()["pressure"], rtol=0.0, atol=1e-12)
+
+
+@pytest.mark.parametrize("scale", [1e-15, 1e-200])
+def test_pseudo_time_is_only_a_label(scale):
+    """Scaling every pseudo-time (the steps and the load curve's times) by ``scale`` leaves
+    the load path, hence the solution, unchanged. Targets below 1e-14 used to be skipped as
+    if reached at t = 0: 0 steps, no load, reported as converged."""
+    import numpy as np
+    from fenicsx_mortar import load_scene
+    from fenicsx_mortar.scene import LoadCurve
+    from conftest import ROOT
+
+    def run(s):
+        scene = load_scene(ROOT / "tests/bad_input/_base.toml")
+        scene.curves = {"c": LoadCurve(t=[0.0, s], value=[0.0, 1.0])}
+        scene.pressures[0].curve = "c"
+        scene.steps.count, scene.steps.times = None, [0.5 * s, s]
+        return solve(scene.validate(), log=lambda s: None)
+
+    unit, scaled = run(1.0), run(scale)
+    assert scaled.converged and len(scaled.steps) == len(unit.steps) == 2
+    p, q = unit.pairs[0].interface(), scaled.pairs[0].interface()
+    assert np.max(p["pressure"]) > 0.5             # the load did act
+    assert np.allclose(q["pressure"], p["pressure"], rtol=0.0, atol=1e-12)

@@ -20,7 +20,7 @@ from mpi4py import MPI
 from scipy.spatial import cKDTree
 
 from .. import _dolfinx as dx
-from . import assembly, boundary
+from . import assembly, boundary, crossing
 from .curves import make_curve
 from .registry import ENFORCEMENTS, FRICTION_LAWS, METHODS
 from .search import candidate_pairs
@@ -53,8 +53,12 @@ class ContactPair:
         self.name = name
         self.slave = build_surface(V, facet_tags, slave, f"{name}:slave", cell_tags)
         self.master = build_surface(V, facet_tags, master, f"{name}:master", cell_tags)
-        check_facing(name, self.slave, self.master)
         s, m = self.slave, self.master
+        if s.body_tag >= 0 and s.body_tag == m.body_tag:
+            raise ValueError(f"contact {name}: slave and master bound the same body (cell tag "
+                             f"{s.body_tag}); self-contact is not supported: a contact pair "
+                             "joins two bodies")
+        check_facing(name, self.slave, self.master)
         if isinstance(E, Mapping):
             E, E_master = E[s.body_tag], E[m.body_tag]
             check_roles(name, s, m, E, E_master)
@@ -109,6 +113,12 @@ class ContactPair:
         self.index, self.skip, self.n_global = self.dofs, np.zeros(0, np.int64), dx.dof_count(V)
         self.state: ContactState | None = None
         self.timings = None
+        #: slave and master nodes at the start of the step (crossing.passed_through)
+        self._start = (s.X, m.X)
+        r = np.broadcast_to(self.radius, (len(s.seg),))
+        self._node_radius = np.zeros(s.n)
+        for col in (0, 1):
+            np.maximum.at(self._node_radius, s.seg[:, col], r)
 
     @property
     def path_dependent(self) -> bool:
@@ -213,6 +223,26 @@ class ContactPair:
         self._first_jacobian = True
         if self.state is not None:
             self._curve = make_curve(self.smoothing, self.state.xm, self.master.seg)
+            self._start = (self.state.xs, self.state.xm)
+
+    def passed_through(self) -> str | None:
+        """Why the current state is not a contact solution, if slave nodes passed through
+        the master during the step unseen by the search (:mod:`.crossing`), else None. The
+        same on every rank (the surfaces' coordinates are gathered)."""
+        st = self.state
+        if st is None:
+            return None
+        nodes, depth = crossing.passed_through(*self._start, st.xs, st.xm, self.master.seg,
+                                               self._node_radius)
+        if not nodes.size:
+            return None
+        j = int(np.argmax(depth))
+        x = st.xs[nodes[j]]
+        return (f"contact {self.name}: {nodes.size} slave node(s) passed through the master "
+                f"in this increment, unseen by the contact search (deepest {depth[j]:.3g} "
+                f"behind it at ({x[0]:.4g}, {x[1]:.4g}); search radius "
+                f"{self._node_radius[nodes[j]]:.3g}); a smaller increment or a larger "
+                "search_radius finds the contact")
 
     def accept_step(self) -> None:
         self.enforcement.accept()

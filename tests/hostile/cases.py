@@ -366,6 +366,16 @@ add(
     value("pair_twice", "contacts[1]", ("contacts", [
         {"name": "c", "slave": "block_bottom", "master": "slab_top"},
         {"name": "c2", "slave": "block_bottom", "master": "slab_top"}])),
+    # no update allowed: every penalty step failed after 6 cuts ("KKT not reached in 0")
+    value("max_augmentations_zero", f"{CONTACT}.enforcement.max_augmentations",
+          (f"{CONTACT}.enforcement", {"type": "penalty", "epsilon": 1e7,
+                                      "max_augmentations": 0})),
+    # the same pair with the roles swapped: cut 6 times, then the active-set cycling guard
+    value("pair_twice_swapped", "contacts[1]", ("contacts", [
+        {"name": "c", "slave": "block_bottom", "master": "slab_top"},
+        {"name": "c2", "slave": "slab_top", "master": "block_bottom"}])),
+    # two surfaces of one body: DIVERGED_FNORM_NAN after 6 cuts, the cause not named
+    value("self_contact", "same body", (f"{CONTACT}.master", "block_top"), stage="mesh"),
     # SuperLU_dist and hypre cannot take the multipliers' zero pivots (DIVERGED_PCSETUP_FAILED
     # without a word on the solver)
     value("superlu_dist_with_multipliers", "solver.linear_solver",
@@ -471,7 +481,7 @@ PETSC = [
     ("unknown_option", "-snes_foo", {"-snes_foo": 1}, "ignored"),
     ("unknown_type", "-ksp_type", {"-ksp_type": "nonsense"}, "wrong"),
     ("unknown_pc", "-pc_type", {"-pc_type": "bogus"}, "wrong"),
-    ("not_an_integer", "-snes_max_it", {"-snes_max_it": "abc"}, "wrong"),
+    ("not_an_integer", "-snes_max_funcs", {"-snes_max_funcs": "abc"}, "wrong"),
     ("unknown_line_search", "-snes_linesearch_type", {"-snes_linesearch_type": "xyz"}, "wrong"),
     ("never_read", "-mat_mumps_icntl_99", {"-mat_mumps_icntl_99": 50}, "ignored"),
     ("view_never_read", "-snes_view", {"-snes_view": True}, "ignored"),
@@ -483,6 +493,20 @@ PETSC = [
      "wrong"),
     ("ksponly", "-snes_type", {"-snes_type": "ksponly"}, "wrong"),
     ("key_with_space", "-ksp_type gmres", {"-ksp_type gmres": True}, "ignored"),
+    # a bare viewer type writes its default file (binaryoutput, output.h5) into the working
+    # directory; -ksp_monitor binary crashed PETSc (SEGV)
+    ("viewer_binary_bare", "-ksp_monitor", {"-ksp_monitor": "binary"}, "crash"),
+    ("viewer_hdf5_bare", "-snes_monitor", {"-snes_monitor": "hdf5"}, "wrong"),
+    ("viewer_mat_binary_bare", "-ksp_view_mat", {"-ksp_view_mat": "binary"}, "wrong"),
+    # MUMPS writes its messages to Fortran unit 10: a file fort.10 in the working directory
+    ("mumps_stream_unit", "-mat_mumps_icntl_1", {"-mat_mumps_icntl_1": 10,
+                                                 "-mat_mumps_icntl_4": 3}, "wrong"),
+    # the Newton loop's limit and tolerances are the scene's: these were silently overridden
+    ("snes_max_it", "solver.max_iterations", {"-snes_max_it": 100000}, "ignored"),
+    ("snes_atol", "solver.atol", {"-snes_atol": 1e-3}, "ignored"),
+    # PETSc's LU instead of MUMPS with multipliers: zero pivots (the linear_solver rule)
+    ("lu_without_pivoting", "-pc_factor_mat_solver_type",
+     {"-pc_factor_mat_solver_type": "petsc"}, "wrong"),
 ]
 add(*(value(f"petsc_{id}", key, ("solver", {"petsc": opts}), hazard=hz)
       for id, key, opts, hz in PETSC))
@@ -558,6 +582,9 @@ add(
     Case("scene_latin1", 2, "scene.toml", BASE_TEXT.replace("block on slab", "caf\xe9")
          .encode("latin-1")),
     Case("scene_utf16", 2, "scene.toml", BASE_TEXT.encode("utf-16")),
+    # a UTF-8 byte-order mark (Windows editors) was a TOML syntax error "at line 1, column 1"
+    Case("scene_utf8_bom", 0, "done", b"\xef\xbb\xbf" + BASE_TEXT.encode(), stage="run",
+         hazard="ignored"),
     Case("scene_binary", 2, "scene.toml", bytes(range(256)) * 4),
     Case("scene_too_large", 2, "scene.toml", BASE_TEXT + "#" + "x" * (20 << 20) + "\n",
          hazard="unchecked"),
@@ -571,6 +598,11 @@ add(
     Case("out_under_a_file", 2, "--out", base(), argv=("run", "{scene}", "--out", "{dir}/f/out"),
          prepare=write("f", b"a file")),
     Case("out_dev_null", 2, "--out", base(), argv=("run", "{scene}", "--out", "/dev/null")),
+    # a name longer than the file system takes (ENAMETOOLONG): a traceback before
+    Case("out_name_too_long", 2, "--out", base(),
+         argv=("run", "{scene}", "--out", "{dir}/" + "o" * 300), mode="process"),
+    Case("restart_name_too_long", 2, "--restart", None,
+         argv=("run", "--restart", "{dir}/" + "r" * 300), mode="process"),
     Case("out_unwritable", 2, "--out", base(),
          argv=("run", "{scene}", "--out", "/proc/self/fm_out")),
     Case("out_read_only", 2, "--out", base(), argv=("run", "{scene}", "--out", "{dir}/ro/out"),
@@ -687,7 +719,7 @@ add(
          base((f"{CONTACT}.enforcement", {"type": "penalty", "epsilon": 10.0})),
          check=in_summary("penetration"), stage="run", hazard="ignored"),
     Case("factorization_fails", 1, "factorization",
-         base(("steps.max_cuts", 1), ("solver", {"petsc": {
+         base(PENALTY, ("steps.max_cuts", 1), ("solver", {"petsc": {
              "-pc_factor_mat_solver_type": "petsc", "-pc_factor_zeropivot": 1e300,
              "-ksp_error_if_not_converged": True}})), stage="run"),
 )
