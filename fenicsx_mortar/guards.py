@@ -209,6 +209,10 @@ def check_tolerance(scene: Scene, bulk, samples: int = 16) -> None:
 # ---------------------------------------------------------------------- step guard
 
 
+#: a step whose displacement exceeds this many times the mesh's diameter is refused
+FLOWN_OFF = 1e3
+
+
 class StepGuard:
     """``solver.check_solution``: None for a physical converged state, else why not."""
 
@@ -222,6 +226,12 @@ class StepGuard:
         body = np.full(dx.num_cells(self.msh), -1)
         body[dom.cell_tags.indices] = dom.cell_tags.values
         self.body = [names.get(int(t), "?") for t in body[self.cells]]
+        x = dx.node_coordinates(self.msh)[:, :2]
+        comm = self.msh.comm
+        lo = comm.allreduce(x.min(axis=0, initial=np.inf), op=MPI.MIN)
+        hi = comm.allreduce(x.max(axis=0, initial=-np.inf), op=MPI.MAX)
+        self.size = float(np.linalg.norm(hi - lo))
+        self.u = bulk.u
 
     def __call__(self) -> str | None:
         reason = self.solver.snes.getConvergedReason()
@@ -232,7 +242,18 @@ class StepGuard:
             why = getattr(h, "passed_through", lambda: None)()
             if why:
                 return why
-        return self.inverted()
+        return self.flown_off() or self.inverted()
+
+    def flown_off(self) -> str | None:
+        """A displacement beyond FLOWN_OFF times the mesh's size (collective): Newton's
+        answer to loads far beyond a material's stiffness (E = 1e-12 under a pressure of 1
+        gave |u| = 1e14, the follower load on a collapsed edge, and zero reactions)."""
+        umax = self.msh.comm.allreduce(float(np.abs(self.u.x.array).max(initial=0.0)),
+                                       op=MPI.MAX)
+        if not umax > FLOWN_OFF * self.size:
+            return None
+        return (f"the solution moves a node by {umax:.3g}, {umax / self.size:.3g} times the "
+                "size of the mesh: not a deformation (loads far beyond a material's E?)")
 
     def inverted(self) -> str | None:
         """Which cells have J ≤ 0 at a quadrature point (collective)."""

@@ -112,3 +112,23 @@ def test_pseudo_time_is_only_a_label(scale):
     p, q = unit.pairs[0].interface(), scaled.pairs[0].interface()
     assert np.max(p["pressure"]) > 0.5             # the load did act
     assert np.allclose(q["pressure"], p["pressure"], rtol=0.0, atol=1e-12)
+
+
+def test_a_displacement_far_beyond_the_mesh_is_not_a_solution():
+    """E = 1e-12 under a pressure of 1: Newton converged to |u| = 1e14 with zero reactions
+    (the follower load on a collapsed edge), which was accepted. The step guard refuses a
+    displacement of more than FLOWN_OFF mesh diameters, and only that."""
+    from fenicsx_mortar import load_scene
+    from fenicsx_mortar.bulk import build_bulk
+    from fenicsx_mortar.guards import FLOWN_OFF, StepGuard
+    from fenicsx_mortar.meshing import build_domain
+    from conftest import ROOT
+
+    scene = load_scene(ROOT / "tests/bad_input/_base.toml")
+    bulk = build_bulk(scene, build_domain(scene))
+    guard = StepGuard(scene, bulk, solver=None)
+    assert guard.size > 0
+    bulk.u.x.array[:] = 0.5 * FLOWN_OFF * guard.size
+    assert guard.flown_off() is None
+    bulk.u.x.array[1] = 2.0 * FLOWN_OFF * guard.size
+    assert "times the size of the mesh" in guard.flown_off()

@@ -718,6 +718,10 @@ add(
     Case("penalty_penetration", 0, "penetration",
          base((f"{CONTACT}.enforcement", {"type": "penalty", "epsilon": 10.0})),
          check=in_summary("penetration"), stage="run", hazard="ignored"),
+    # Newton's answer was |u| = 1e14 with zero reactions (the follower pressure on a
+    # collapsed edge), accepted as converged: now refused, the run stops (exit 1)
+    Case("E_tiny_flies_off", 1, "NOT converged", base(("bodies[0].material.E", 1e-12)),
+         stage="run"),
     Case("factorization_fails", 1, "factorization",
          base(PENALTY, ("steps.max_cuts", 1), ("solver", {"petsc": {
              "-pc_factor_mat_solver_type": "petsc", "-pc_factor_zeropivot": 1e300,
