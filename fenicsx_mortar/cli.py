@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import errno
 import os
+import re
 import signal
 import sys
 import threading
@@ -146,6 +147,10 @@ def _dispatch(args, comm) -> int:
                 print(f"contact {name}: normal force {c['normal_force']:.6g}, max pressure "
                       f"{c['max_pressure']:.6g}, {c['active_nodes']} active nodes, "
                       f"KKT residual {c['kkt_residual']:.1e}")
+        if not result.converged:
+            # the why, in one line where scripts look for it (the log has the residuals)
+            why = re.sub(r", residuals [^;]*", "", result.message.splitlines()[0])
+            _say(f"fenicsx-mortar: error: run failed: {why}")
     return 0 if result.converged else 1
 
 

@@ -228,9 +228,9 @@ class StepGuard:
         self.body = [names.get(int(t), "?") for t in body[self.cells]]
         x = dx.node_coordinates(self.msh)[:, :2]
         comm = self.msh.comm
-        lo = comm.allreduce(x.min(axis=0, initial=np.inf), op=MPI.MIN)
-        hi = comm.allreduce(x.max(axis=0, initial=-np.inf), op=MPI.MAX)
-        self.size = float(np.linalg.norm(hi - lo))
+        lo = [comm.allreduce(float(v), op=MPI.MIN) for v in x.min(axis=0, initial=np.inf)]
+        hi = [comm.allreduce(float(v), op=MPI.MAX) for v in x.max(axis=0, initial=-np.inf)]
+        self.size = float(np.hypot(hi[0] - lo[0], hi[1] - lo[1]))
         self.u = bulk.u
 
     def __call__(self) -> str | None:

@@ -11,7 +11,9 @@ from __future__ import annotations
 import errno
 import json
 import os
+import re
 import tempfile
+from glob import escape as glob_escape
 from pathlib import Path
 
 import numpy as np
@@ -40,23 +42,39 @@ def prepare_out(out: Path) -> None:
         raise SceneError(f"{key}: cannot write there ({e.strerror})") from None
 
 
-#: what a run writes into ``--out``
+#: what a run writes into ``--out`` (beside interface/<pair>_NNNN.csv, <pair>_pressure.png)
 OWN_FILES = ("summary.json", "scene.json", "checkpoint.npz", "solution.xdmf", "solution.h5",
              "solution_from_step_*.xdmf", "solution_from_step_*.h5", "reactions.png",
-             "convergence.png", "interface/*_[0-9][0-9][0-9][0-9].csv",
-             "interface/*_pressure.png")
+             "convergence.png")
 
 
 def clear_previous(out: Path) -> int:
     """Remove a previous run's files from ``out`` (rank 0, before a new run writes there):
     a run without XDMF or with other pair names would otherwise leave them beside its own
-    summary, to be taken for this run's. Only the names in OWN_FILES go. Returns how many."""
+    summary, to be taken for this run's. Only OWN_FILES go, and in ``interface/`` the
+    files of the pairs the previous run's scene.json names; nothing through a symbolic
+    link to a directory. Returns how many files went."""
+    paths = [p for pattern in OWN_FILES for p in out.glob(pattern)]
+    folder = out / "interface"
+    if folder.is_dir() and not folder.is_symlink():
+        try:
+            names = [c["name"] for c in json.loads((out / "scene.json").read_text())
+                     .get("contacts", [])]
+        except (OSError, ValueError, TypeError, KeyError, AttributeError):
+            names = []      # no readable record of its pairs: their files stay
+        for n in names:
+            paths += [p for p in folder.glob(f"{glob_escape(n)}_*")
+                      if p.name[len(n):] == "_pressure.png"
+                      or re.fullmatch(r"_\d{4,}\.csv", p.name[len(n):])]
     removed = 0
-    for pattern in OWN_FILES:
-        for p in out.glob(pattern):
-            if p.is_file() or p.is_symlink():
+    for p in paths:
+        if p.is_file() or p.is_symlink():
+            try:
                 p.unlink()
-                removed += 1
+            except OSError as e:
+                raise SceneError(f"--out {out}: cannot remove the previous run's {p} "
+                                 f"({e.strerror})") from None
+            removed += 1
     return removed
 
 

@@ -115,6 +115,10 @@ def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM
     t0, k0, steps = 0.0, 0, []
     if restart:
         t0, k0, steps = checkpoint.load(out, comm, bulk.u, pairs, saved, fingerprints[1])
+        # the pairs' state at the restored solution, as after that step in the first run:
+        # the next step starts from it (its master curve, the crossing check)
+        for p in pairs:
+            p.update(bulk.u)
         log(f"  restart from step {k0} at pseudo-time {t0:.6g}")
     else:
         guards.check_tolerance(scene, bulk)

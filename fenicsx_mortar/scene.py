@@ -440,10 +440,11 @@ class Scene:
                                      "with slave and master swapped: the contact would be "
                                      "counted twice (with multipliers: a singular system)")
             e = c.enforcement
-            lu = self.solver.petsc.get("-pc_factor_mat_solver_type")
-            setting = ("solver.linear_solver", self.solver.linear_solver) if lu is None else \
-                ("solver.petsc -pc_factor_mat_solver_type", lu)
-            if getattr(ENFORCEMENTS[e.type], "unknowns", 0) and setting[1] != "mumps":
+            lu = self.solver.petsc.get("-pc_factor_mat_solver_type", "mumps")
+            setting = ("solver.linear_solver", self.solver.linear_solver) if lu == "mumps" \
+                else ("solver.petsc -pc_factor_mat_solver_type", lu)
+            multipliers = getattr(ENFORCEMENTS[e.type], "unknowns", 0)
+            if multipliers and setting[1] != "mumps":
                 raise SceneError(
                     f"{setting[0]} = {setting[1]!r}: cannot solve the "
                     f"saddle-point system of {key}'s multipliers (enforcement "
@@ -456,9 +457,10 @@ class Scene:
             _check_range(e.tolerance, f"{key}.enforcement.tolerance", 1e-14, 1e-2,
                          "a KKT residual relative to the pressure scale: below 1e-14 it is "
                          "round-off, above 1e-2 the pressures are not converged")
-            _check_range(e.max_augmentations, f"{key}.enforcement.max_augmentations", 1,
-                         LIMITS["max_augmentations"], "0 would fail every step that needs "
-                         "a multiplier update or a penalty raise")
+            # with multipliers there is nothing to augment; else 0 would fail every step
+            # that needs a multiplier update or a penalty raise
+            _check_range(e.max_augmentations, f"{key}.enforcement.max_augmentations",
+                         0 if multipliers else 1, LIMITS["max_augmentations"])
             if c.friction.mu < 0:
                 raise SceneError(f"{key}.friction.mu = {c.friction.mu}: must be >= 0")
             if c.friction.law == "none" and c.friction.mu != 0:

@@ -37,7 +37,9 @@ def test_failed_run_keeps_converged_steps(tmp_path):
     assert not s["converged"]
     assert len(s["steps"]) >= 2 and s["steps"][-1]["time"] < 1.0
     assert "stopped at pseudo-time" in s["message"]
-    assert "Traceback" not in proc.stderr
+    # the why on stderr, one line (the log on stdout has the residuals too)
+    assert proc.stderr.startswith("fenicsx-mortar: error: run failed: stopped at pseudo-time")
+    assert proc.stderr.count("\n") == 1 and "residuals" not in proc.stderr, proc.stderr
 
 
 def test_a_new_run_replaces_the_previous_runs_files(tmp_path):
@@ -58,3 +60,29 @@ def test_a_new_run_replaces_the_previous_runs_files(tmp_path):
     assert left == ["checkpoint.npz", "interface/c_0001.csv", "notes.txt", "scene.json",
                     "summary.json"], left
     assert len(json.loads((out / "summary.json").read_text())["steps"]) == 1
+
+
+def test_clearing_a_previous_run_stays_inside_out(tmp_path):
+    """Only the previous run's own files go: through a symbolic link named interface/
+    nothing is removed, and in interface/ only the files of the pairs its scene.json
+    names."""
+    from fenicsx_mortar.output import clear_previous
+    out, elsewhere = tmp_path / "out", tmp_path / "elsewhere"
+    out.mkdir()
+    elsewhere.mkdir()
+    (out / "scene.json").write_text(json.dumps({"contacts": [{"name": "old"}]}))
+    (out / "summary.json").write_text("{}")
+    for name in ("old_0001.csv", "experiment_2024.csv", "old_notes.csv"):
+        (elsewhere / name).write_text("x")
+    (out / "interface").symlink_to(elsewhere)
+    assert clear_previous(out) == 2                     # scene.json, summary.json
+    assert sorted(p.name for p in elsewhere.iterdir()) == [
+        "experiment_2024.csv", "old_0001.csv", "old_notes.csv"]
+    (out / "interface").unlink()
+    (out / "interface").mkdir()
+    (out / "scene.json").write_text(json.dumps({"contacts": [{"name": "old"}]}))
+    for name in ("old_0001.csv", "old_pressure.png", "experiment_2024.csv", "old_notes.csv"):
+        (out / "interface" / name).write_text("x")
+    assert clear_previous(out) == 3
+    assert sorted(p.name for p in (out / "interface").iterdir()) == [
+        "experiment_2024.csv", "old_notes.csv"]

@@ -24,42 +24,50 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 
-def signed_distance(x: np.ndarray, xm: np.ndarray, seg: np.ndarray,
-                    k: int = 3) -> tuple[np.ndarray, np.ndarray]:
+def signed_distance(x: np.ndarray, xm: np.ndarray, seg: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray]:
     """(d, inside) per point of ``x`` against the master polyline (nodes ``xm``, segments
     ``seg`` oriented so that e₃ × t points out of the body): the signed distance d (module
     docstring) and whether the closest point lies inside the chain (not at an open end).
-    The closest point is searched on the segments of the ``k`` nearest master nodes."""
+
+    Exact closest point: the nearest master node's distance D bounds the polyline's, and a
+    segment with a point within D has its midpoint within D + L_max/2; the nearest
+    midpoints are taken until the next one lies beyond that bound."""
     seg = np.asarray(seg, dtype=np.int64).reshape(-1, 2)
-    n_m = xm.shape[0]
-    if x.shape[0] == 0 or seg.shape[0] == 0:
-        return np.full(x.shape[0], np.inf), np.zeros(x.shape[0], dtype=bool)
+    n_p, n_m, n_s = x.shape[0], xm.shape[0], seg.shape[0]
+    if n_p == 0 or n_s == 0:
+        return np.full(n_p, np.inf), np.zeros(n_p, dtype=bool)
     # segments at each master node (at most two on a chain; −1 pads)
     node_of = seg.T.ravel()
-    seg_of = np.tile(np.arange(seg.shape[0]), 2)
+    seg_of = np.tile(np.arange(n_s), 2)
     order = np.argsort(node_of, kind="stable")
     count = np.bincount(node_of, minlength=n_m)
     rank = np.arange(order.size) - np.repeat(np.cumsum(count) - count, count)
     at = np.full((n_m, 2), -1, dtype=np.int64)
     at[node_of[order], np.minimum(rank, 1)] = seg_of[order]
-    t = xm[seg[:, 1]] - xm[seg[:, 0]]
+    a, t = xm[seg[:, 0]], xm[seg[:, 1]] - xm[seg[:, 0]]
     length2 = np.einsum("ij,ij->i", t, t)
     normal = np.stack([-t[:, 1], t[:, 0]], axis=1) / np.sqrt(length2)[:, None]
-    k = min(k, n_m)
-    _, near = cKDTree(xm).query(x, k=k)
-    near = near.reshape(x.shape[0], k)
-    cand = at[near].reshape(x.shape[0], 2 * k)                       # candidate segments
-    valid = cand >= 0
-    c = np.where(valid, cand, 0)
-    a = xm[seg[c, 0]]
-    xi = np.einsum("pqi,pqi->pq", x[:, None, :] - a, t[c]) / length2[c]
-    xi = np.clip(xi, 0.0, 1.0)
-    foot = a + xi[..., None] * t[c]
-    dist = np.linalg.norm(x[:, None, :] - foot, axis=2)
-    dist = np.where(valid, dist, np.inf)
-    best = np.argmin(dist, axis=1)
-    rows = np.arange(x.shape[0])
-    s_best, xi_best = c[rows, best], xi[rows, best]
+    D, _ = cKDTree(xm).query(x)
+    bound = D + 0.5 * np.sqrt(length2.max()) * (1.0 + 1e-12)
+    mids = cKDTree(a + 0.5 * t)
+    s_best = np.zeros(n_p, dtype=np.int64)
+    xi_best = np.zeros(n_p)
+    todo, k = np.arange(n_p), 4
+    while todo.size:
+        k = min(k, n_s)
+        dm, cand = mids.query(x[todo], k=k)
+        dm, cand = dm.reshape(todo.size, k), cand.reshape(todo.size, k)
+        p = x[todo][:, None, :]
+        xi = np.clip(np.einsum("pqi,pqi->pq", p - a[cand], t[cand]) / length2[cand], 0.0, 1.0)
+        dist = np.linalg.norm(p - (a[cand] + xi[..., None] * t[cand]), axis=2)
+        best = np.argmin(dist, axis=1)
+        rows = np.arange(todo.size)
+        s_best[todo], xi_best[todo] = cand[rows, best], xi[rows, best]
+        # done where every segment not looked at has its midpoint beyond the bound
+        done = (k == n_s) | (dm[:, -1] > bound[todo])
+        todo, k = todo[~done], 2 * k
+    foot = a[s_best] + xi_best[:, None] * t[s_best]
     # at a vertex: the normal of the mean of its segments (the side of the corner)
     node = np.where(xi_best <= 0.0, seg[s_best, 0], np.where(xi_best >= 1.0, seg[s_best, 1], -1))
     n = normal[s_best].copy()
@@ -70,8 +78,7 @@ def signed_distance(x: np.ndarray, xm: np.ndarray, seg: np.ndarray,
         m = normal[pair[:, 0]] + normal[pair[:, 1]]
         n[both] = m / np.maximum(np.linalg.norm(m, axis=1), 1e-300)[:, None]
     inside = ~vertex | both                                          # not an open chain end
-    d = np.einsum("pi,pi->p", x - foot[rows, best], n)
-    return d, inside
+    return np.einsum("pi,pi->p", x - foot, n), inside
 
 
 def passed_through(xs0: np.ndarray, xm0: np.ndarray, xs1: np.ndarray, xm1: np.ndarray,

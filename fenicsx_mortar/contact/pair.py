@@ -23,7 +23,7 @@ from .. import _dolfinx as dx
 from . import assembly, boundary, crossing
 from .curves import make_curve
 from .registry import ENFORCEMENTS, FRICTION_LAWS, METHODS
-from .search import candidate_pairs
+from .search import candidate_pairs, search_once
 from .state import ContactState
 from .surface import Surface, build_surface
 
@@ -234,6 +234,16 @@ class ContactPair:
             return None
         nodes, depth = crossing.passed_through(*self._start, st.xs, st.xm, self.master.seg,
                                                self._node_radius)
+        if nodes.size:
+            # keep those the search does not see: no master candidate for either of the
+            # node's segments (the search reaches up to about twice the radius)
+            s = self.slave
+            mine = np.flatnonzero(np.isin(s.seg, nodes).any(axis=1))
+            radius = self.radius if np.ndim(self.radius) == 0 else self.radius[mine]
+            found, _ = search_once(st.xs, s.seg[mine], st.xm, self.master.seg, radius)
+            seen = np.unique(s.seg[mine[found]])
+            keep = ~np.isin(nodes, seen)
+            nodes, depth = nodes[keep], depth[keep]
         if not nodes.size:
             return None
         j = int(np.argmax(depth))

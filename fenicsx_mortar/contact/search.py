@@ -89,6 +89,18 @@ def _superset(xs, seg_s, xm, seg_m, radius, cs, hs, cm, hm):
     return pairs
 
 
+def search_once(xs: np.ndarray, seg_s: np.ndarray, xm: np.ndarray, seg_m: np.ndarray,
+                radius: float | np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    """The pairs of :func:`candidate_pairs`, searched afresh (no superset kept): for a
+    one-off question about a few segments, which must not evict the Newton loop's."""
+    cs, hs = segment_boxes(xs, seg_s)
+    cm, hm = segment_boxes(xm, seg_m)
+    if cs.shape[0] == 0 or cm.shape[0] == 0:
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    return _search(cs, hs, cm, hm, np.asarray(radius, dtype=float) if np.ndim(radius)
+                   else radius)
+
+
 def candidate_pairs(xs: np.ndarray, seg_s: np.ndarray, xm: np.ndarray, seg_m: np.ndarray,
                     radius: float | np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
     """All (slave segment, master segment) index pairs whose inflated boxes overlap

@@ -29,6 +29,18 @@ def test_signed_distance_at_a_corner_takes_the_side_of_the_corner():
     assert d[2] == pytest.approx(-0.5 / np.sqrt(2.0))       # the vertex: the mean normal
 
 
+def test_the_closest_segment_is_found_past_nearer_nodes_of_another_side():
+    """A thin closed plate (thickness 0.1): one segment on top, 40 underneath. A point 0.02
+    above the top's middle is nearer to many bottom nodes than to the top's two: searching
+    only the segments at the nearest nodes gave d = -0.12."""
+    bottom = np.c_[np.linspace(0.0, 4.0, 41), np.zeros(41)]
+    xm = np.vstack([bottom, [[4.0, 0.1], [0.0, 0.1]]])
+    n = len(xm)
+    seg = np.array([[i, i + 1] for i in range(n - 1)] + [[n - 1, 0]])[:, ::-1]  # clockwise
+    d, inside = signed_distance(np.array([[2.0, 0.12], [2.05, 0.03]]), xm, seg)
+    assert inside.all() and d == pytest.approx([0.02, -0.03])
+
+
 def test_only_nodes_crossing_from_the_front_are_reported():
     r = np.full(4, 0.2)
     xs0 = np.array([[1.5, 0.1], [2.5, -1.0], [3.5, 0.1], [4.5, 0.1]])
@@ -67,3 +79,25 @@ def test_one_step_through_a_gap_finds_the_contact_of_many_steps():
     force = [r.steps[-1]["contact"]["c"]["normal_force"] for r in (one, many)]
     assert force[1] > 1.0
     assert force[0] == pytest.approx(force[1], rel=1e-8)
+
+
+def test_a_deep_node_the_search_still_sees_is_not_refused():
+    """A soft penalty (ε = 2) lets the block sink 0.505 into the slab, more than the search
+    radius 0.5, but the search (boxes inflated by the radius on both sides) still pairs
+    those nodes' segments with the master: the contact acts there, the step stands."""
+    import warnings
+
+    from conftest import ROOT
+    from fenicsx_mortar import load_scene, solve
+
+    scene = load_scene(ROOT / "tests/bad_input/_base.toml")
+    scene.contacts[0].enforcement.type = "penalty"
+    scene.contacts[0].enforcement.epsilon = 2.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = solve(scene, log=lambda s: None)
+    assert r.converged, r.message
+    pair = r.pairs[0]
+    st = pair.state
+    depth = -np.where(st.A > 0, st.g / np.where(st.A > 0, st.A, 1.0), 0.0)
+    assert depth.max() > pair._node_radius.max()

@@ -510,6 +510,9 @@ PETSC = [
 ]
 add(*(value(f"petsc_{id}", key, ("solver", {"petsc": opts}), hazard=hz)
       for id, key, opts, hz in PETSC))
+# hypre with multipliers, whatever the LU key says
+add(value("petsc_hypre_despite_mumps_key", "gmres-hypre", ("solver", {
+    "linear_solver": "gmres-hypre", "petsc": {"-pc_factor_mat_solver_type": "mumps"}})))
 
 # -- groups: empty lists, repeats, two bodies on one region, conflicting supports ----------
 add(
