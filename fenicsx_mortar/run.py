@@ -188,7 +188,15 @@ def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM
             on_step(record, Result(scene, False, "running", steps, dict(timings), dom, bulk,
                                    stress, pairs, summary))
 
-    progress = _progress_printer() if rank0 else (lambda s: None)
+    live = _progress_printer() if rank0 else (lambda s: None)
+
+    def progress(s: str) -> None:
+        # why an increment failed belongs in the log (a batch run's only record of it);
+        # "step k t=… ..." is a live status line only
+        if s.startswith(("cut:", "retrying", "MUMPS")):
+            log(f"  {s}")
+        else:
+            live(s)
     _enter("in the load steps")
     try:
         with stop:
