@@ -41,7 +41,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from benchmarks import pool  # noqa: E402
-from benchmarks.half_rings_smoothing import MU, on_targets, oscillation  # noqa: E402
+from benchmarks.half_rings_smoothing import (MU, TURN_TARGETS, load_parameters,  # noqa: E402
+                                            on_targets, oscillation)
 
 DOCS = ROOT / "docs"
 OUT = ROOT / "results" / "half_rings_refinement"
@@ -67,7 +68,7 @@ def run_job(job: dict) -> dict:
 def turn_curve(run: dict, key: str = "Rx") -> np.ndarray:
     """The component ``key`` at the 20 turn targets (nan where the run did not get)."""
     got = {round(r["time"], 9): r[key] for r in on_targets(run["rows"])}
-    return np.array([got.get(round(1.0 + 0.05 * j, 9), np.nan) for j in range(1, 21)])
+    return np.array([got.get(round(t, 9), np.nan) for t in TURN_TARGETS])
 
 
 def error_to(curve: np.ndarray, ref: np.ndarray) -> tuple[float, float]:
@@ -114,7 +115,7 @@ def plot(runs: list[dict]) -> None:
         for r in runs:
             if r["level"] != L:
                 continue
-            phi = np.degrees(0.41152 * 0.05 * np.arange(1, 21))
+            phi = np.degrees([load_parameters(t)[1] for t in TURN_TARGETS])
             a.plot(phi, turn_curve(r), marker="o", ms=3, color=colour[r["smoothing"]],
                    label=r["smoothing"])
         m = mesh_params(L)
