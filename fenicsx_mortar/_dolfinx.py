@@ -398,12 +398,16 @@ def _held_blocks(l2g: np.ndarray, order: np.ndarray, blk: np.ndarray) -> np.ndar
     return order[pos][l2g[order[pos]] == blk].astype(np.int32)
 
 
-def quadrature_expression(expr, msh: Mesh, degree: int) -> fem.Expression:
+def quadrature_expression(expr, msh: Mesh, degree: int, vertices: bool = False
+                          ) -> fem.Expression:
     """Compile a scalar UFL expression for evaluation at the Gauss points of ``degree`` on
-    the mesh's cell type (``.eval(cells)`` → (n_cells, n_points))."""
+    the mesh's cell type, with ``vertices`` also at the reference cell's corners
+    (``.eval(cells)`` → (n_cells, n_points))."""
     import basix
     cell = getattr(basix.CellType, msh.topology.cell_type.name)
     points, _ = basix.make_quadrature(cell, degree)
+    if vertices:
+        points = np.vstack([points, basix.geometry(cell)])
     return fem.Expression(expr, points)
 
 

@@ -6,7 +6,7 @@ converged physical solution, and no input the solver would choke on reaches it u
 * :func:`check_tolerance` compares ``solver.atol`` with the loads' residual scale;
 * :class:`StepGuard` is the solver's last word on a converged load step: the SNES stopped
   by the convergence rule, and the solution inverts no cell (J = det F ≤ 0 at a quadrature
-  point: SVK, say, has such solutions); otherwise the step failed (it is cut, then the run
+  point or a corner: SVK, say, has such solutions); otherwise the step failed (it is cut, then the run
   stops saying which cells);
 * :func:`linear_failure` turns a failed factorization (MUMPS INFOG(1) < 0, a zero pivot)
   into the step's failure message;
@@ -220,7 +220,8 @@ class StepGuard:
         dom = bulk.domain
         self.msh, self.solver = dom.mesh, solver
         F = ufl.Identity(2) + ufl.grad(bulk.u)
-        self.J = dx.quadrature_expression(ufl.det(F), self.msh, scene.solver.quadrature_degree)
+        self.J = dx.quadrature_expression(ufl.det(F), self.msh,
+                                            scene.solver.quadrature_degree, vertices=True)
         self.cells = np.arange(dx.num_owned_cells(self.msh), dtype=np.int32)
         names = {dom.cell_groups[b.group]: b.name for b in scene.bodies}
         body = np.full(dx.num_cells(self.msh), -1)
@@ -256,7 +257,10 @@ class StepGuard:
                 "size of the mesh: not a deformation (loads far beyond a material's E?)")
 
     def inverted(self) -> str | None:
-        """Which cells have J ≤ 0 at a quadrature point (collective)."""
+        """Which cells have J ≤ 0 at a quadrature point or a corner (collective). J of a P1
+        or Q1 cell is affine in each reference coordinate, so the corners are the exact test;
+        a folded slave (two blocks overlapping by two elements) converged with J > 0 at every
+        Gauss point."""
         comm = self.msh.comm
         if len(self.cells):
             J = dx.expression_eval(self.J, self.msh, self.cells)
@@ -273,8 +277,8 @@ class StepGuard:
         found = sorted(sum(comm.allgather(mine), []), key=lambda r: r[0])[:5]
         where = ", ".join(f"{b!r} at ({m[0]:.4g}, {m[1]:.4g}) J = {j:.3g}"
                           for j, b, m in found)
-        return (f"the solution inverts {count} cell(s) (J = det F <= 0 at a quadrature point, "
-                f"not a physical deformation): {where}")
+        return (f"the solution inverts {count} cell(s) (J = det F <= 0 at a quadrature point "
+                f"or a corner, not a physical deformation): {where}")
 
 
 def penetration_warning(pair, step: int) -> str | None:

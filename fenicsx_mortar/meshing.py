@@ -112,6 +112,7 @@ def _check_cells(model, where: str) -> None:
     cells = cells.reshape(-1, n_nodes).astype(np.int64)
     x = _node_coordinates(model)
     _check_areas(x, cells, where)
+    _check_duplicates(x, cells, where)
     _check_curves(model, x, cells, where)
 
 
@@ -123,16 +124,31 @@ def _node_coordinates(model) -> np.ndarray:
     return x
 
 
+def _check_duplicates(x: np.ndarray, cells: np.ndarray, where: str) -> None:
+    """No two cells on the same nodes: DOLFINx 0.5 builds a topology with a facet shared
+    by four cells and PETSc then segfaults in the assembly (and the process hangs)."""
+    key = np.sort(cells, axis=1)
+    _, first, count = np.unique(key, axis=0, return_index=True, return_counts=True)
+    twice = first[count > 1]
+    if twice.size:
+        c = x[cells[twice[0]]].mean(axis=0)
+        raise SceneError(f"{where}: {twice.size} cell(s) listed more than once, on the same "
+                         f"nodes (the first at ({c[0]:.6g}, {c[1]:.6g}))")
+
+
 def _check_curves(model, x: np.ndarray, cells: np.ndarray, where: str) -> None:
-    """Every segment of a physical curve group is an edge of a 2D cell: DOLFINx 0.5
-    crashes (free(): invalid pointer, in distribute_entity_data) on a curve off the
-    cells."""
+    """Every segment of a physical curve group is an edge of a 2D cell (DOLFINx 0.5
+    crashes, free(): invalid pointer in distribute_entity_data, on a curve off the cells),
+    and in one physical curve group only (DOLFINx keeps one tag per facet: the other group
+    would silently lose it, a contact surface or a support shrunk)."""
     a, b = cells, np.roll(cells, -1, axis=1)
     lo, hi = np.minimum(a, b).ravel(), np.maximum(a, b).ravel()
     n = len(x)
     edges = np.unique(lo * n + hi)
+    owner: dict[int, str] = {}
     for dim, tag in model.getPhysicalGroups(1):
         name = model.getPhysicalName(dim, tag) or str(tag)
+        mine = []
         for entity in model.getEntitiesForPhysicalGroup(dim, tag):
             for etype, _, nodes in zip(*model.mesh.getElements(1, entity)):
                 k = model.mesh.getElementProperties(etype)[3]
@@ -145,6 +161,16 @@ def _check_curves(model, x: np.ndarray, cells: np.ndarray, where: str) -> None:
                         f"that are no cell's edge (the first from ({p0[0]:.6g}, "
                         f"{p0[1]:.6g}) to ({p1[0]:.6g}, {p1[1]:.6g})): a boundary group "
                         "must lie on the cells of the bodies")
+                mine.append(seg.min(axis=1) * n + seg.max(axis=1))
+        for key in np.unique(np.concatenate(mine)) if mine else ():
+            other = owner.setdefault(int(key), name)
+            if other != name:
+                p0, p1 = x[int(key) // n], x[int(key) % n]
+                raise SceneError(
+                    f"{where}: the segment from ({p0[0]:.6g}, {p0[1]:.6g}) to ({p1[0]:.6g}, "
+                    f"{p1[1]:.6g}) is in two physical curve groups, {other!r} and {name!r}: "
+                    "a facet keeps one tag, so one group would silently lose it; make the "
+                    "groups disjoint and list several in a scene key instead")
 
 
 def _check_areas(x: np.ndarray, cells: np.ndarray, where: str) -> None:

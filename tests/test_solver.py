@@ -132,3 +132,31 @@ def test_a_displacement_far_beyond_the_mesh_is_not_a_solution():
     assert guard.flown_off() is None
     bulk.u.x.array[1] = 2.0 * FLOWN_OFF * guard.size
     assert "times the size of the mesh" in guard.flown_off()
+
+
+@pytest.mark.parametrize("a, inverted", [(0.45, True), (0.55, False)])
+def test_a_cell_inverted_only_at_a_corner_is_not_a_solution(a, inverted):
+    """One Q1 cell, its corner (1, 1) moved to (a, a): J = 1 + 2(a − 1)·ξ on the diagonal
+    ξ = η, negative at the corner for a < 1/2 but positive at the 2 × 2 Gauss points
+    (ξ = 0.789) for a > 0.366. A folded slave converged that way (two blocks overlapping by
+    two elements); J at the corners is the exact test (J is affine in ξ and η)."""
+    import numpy as np
+    from fenicsx_mortar import load_scene
+    from fenicsx_mortar.bulk import build_bulk
+    from fenicsx_mortar.guards import StepGuard
+    from fenicsx_mortar.meshing import build_domain
+    from conftest import ROOT
+
+    scene = load_scene(ROOT / "tests/bad_input/_base.toml")
+    scene.mesh.generator, scene.mesh.params = "block", {"nx": 1, "ny": 1}
+    scene.contacts, scene.dirichlet[0].boundary, scene.dirichlet[1].boundary = [], "bottom", "left"
+    scene.pressures[0].boundary = "top"
+    scene.bodies = scene.bodies[:1]
+    scene.bodies[0].name = "block"
+    bulk = build_bulk(scene.validate(), build_domain(scene))
+    bulk.u.interpolate(lambda x: np.vstack([(a - 1.0) * x[0] * x[1]] * 2))
+    guard = StepGuard(scene, bulk, solver=None)
+    why = guard.inverted()
+    assert (why is not None) == inverted
+    if inverted:
+        assert "1 cell(s)" in why and "'block'" in why

@@ -59,6 +59,7 @@ class ContactPair:
                              f"{s.body_tag}); self-contact is not supported: a contact pair "
                              "joins two bodies")
         check_facing(name, self.slave, self.master)
+        check_overlap(name, self.slave, self.master)
         if isinstance(E, Mapping):
             E, E_master = E[s.body_tag], E[m.body_tag]
             check_roles(name, s, m, E, E_master)
@@ -361,6 +362,20 @@ def check_facing(name: str, slave: Surface, master: Surface) -> None:
     if not np.any(np.einsum("ij,ij->i", ns, nm[j]) < -0.5):
         raise ValueError(f"contact {name}: the slave and master surfaces do not face each "
                          "other (their outward normals never oppose): check the tags")
+
+
+def check_overlap(name: str, slave: Surface, master: Surface) -> None:
+    """Warn when slave nodes start inside the master deeper than their element size
+    (:func:`.crossing.initial_overlap`): the first step then often fails."""
+    nodes, depth, size = crossing.initial_overlap(slave.X, slave.seg, master.X, master.seg)
+    if nodes.size:
+        j = int(np.argmax(depth))
+        x = slave.X[nodes[j]]
+        warnings.warn(f"contact {name}: {nodes.size} slave node(s) start inside the master, up "
+                      f"to {depth[j]:.3g} deep at ({x[0]:.4g}, {x[1]:.4g}), more than their "
+                      f"element size ({size[j]:.3g}): the first step must resolve all of it, "
+                      "which then often fails (move the bodies apart, or mesh them coarser "
+                      "than the overlap)", stacklevel=3)
 
 
 def check_roles(name: str, slave: Surface, master: Surface, E_s: float, E_m: float) -> None:

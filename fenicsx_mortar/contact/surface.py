@@ -135,6 +135,7 @@ def build_surface(V, facet_tags, values: int | Sequence[int], name: str,
             seg.append(ends)
     X, dofs = np.array(X, dtype=float), np.array(dofs, dtype=np.int64)
     seg = np.array(seg, dtype=np.int64).reshape(-1, 2)
+    _check_chain(name, X, seg)
     order, seg_order = _chain_order(seg, len(X))
     renum = np.empty(len(X), dtype=np.int64)
     renum[order] = np.arange(len(X))
@@ -152,6 +153,18 @@ def build_surface(V, facet_tags, values: int | Sequence[int], name: str,
     mine, first = np.unique(mine, return_index=True)
     return Surface(name, X, dofs, seg, tags[0], mine, mine_local[first], comm)
 
+
+
+def _check_chain(name: str, X: np.ndarray, seg: np.ndarray) -> None:
+    """A surface is one or more simple chains: no node in more than two segments (a
+    branch, two facets of the body meeting at a pinched node)."""
+    count = np.bincount(seg.ravel(), minlength=len(X))
+    bad = np.flatnonzero(count > 2)
+    if bad.size:
+        p = X[bad[0]]
+        raise ValueError(f"contact surface {name}: the node at ({p[0]:.6g}, {p[1]:.6g}) is in "
+                         f"{count[bad[0]]} segments: not a chain (a contact surface is one or "
+                         "more simple curves)")
 
 
 def _chain_order(seg: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:

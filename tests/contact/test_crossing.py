@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fenicsx_mortar.contact.crossing import passed_through, signed_distance
+from fenicsx_mortar.contact.crossing import initial_overlap, passed_through, signed_distance
 
 # a master chain along y = 0 from x = 0 to 4, outward normal +y (e3 x t with t = +x)
 XM = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [3.0, 0.0], [4.0, 0.0]])
@@ -101,3 +101,29 @@ def test_a_deep_node_the_search_still_sees_is_not_refused():
     st = pair.state
     depth = -np.where(st.A > 0, st.g / np.where(st.A > 0, st.A, 1.0), 0.0)
     assert depth.max() > pair._node_radius.max()
+
+
+def _block_bottom(depth: float, h: float = 0.25, x0: float = 1.0, width: float = 1.0):
+    """A slave chain on y = −depth from x0 + width to x0 (outward normal −y: facing the
+    master XM from below its front)."""
+    n = int(round(width / h))
+    xs = np.c_[np.linspace(x0 + width, x0, n + 1), np.full(n + 1, -depth)]
+    return xs, np.c_[np.arange(n), np.arange(1, n + 1)]
+
+
+@pytest.mark.parametrize("depth, reported", [(0.2, 0), (0.3, 5), (0.6, 5)])
+def test_an_initial_overlap_deeper_than_the_elements_is_reported(depth, reported):
+    xs, seg = _block_bottom(depth)
+    nodes, d, size = initial_overlap(xs, seg, XM, SEG)
+    assert nodes.size == reported
+    assert np.allclose(d, depth) and np.allclose(size, 0.25)
+
+
+def test_an_initial_overlap_is_not_the_far_side_of_a_thin_body():
+    """A slave facing away from the master's front (a clamp's lower jaw under a plate whose
+    top is the master), or past the master's open end, is not inside it."""
+    xs, seg = _block_bottom(0.6)
+    nodes, _, _ = initial_overlap(xs, seg[:, ::-1], XM, SEG)      # normal +y: facing away
+    assert nodes.size == 0
+    xs, seg = _block_bottom(0.6, x0=5.0)                           # beyond x = 4
+    assert initial_overlap(xs, seg, XM, SEG)[0].size == 0

@@ -693,6 +693,11 @@ add(
     mesh_case("mesh_truncated", "truncated.msh", "truncated.msh"),
     mesh_case("mesh_overlapping_groups", "overlap.msh", "overlap.msh"),
     mesh_case("mesh_zero_area_cell", "zero_area.msh", "zero_area.msh"),
+    # one cell listed twice: a PETSc SEGV, then a process that SIGTERM did not end
+    mesh_case("mesh_duplicate_cell", "listed more than once", "duplicate_cell.msh"),
+    # "bottom" and "base" on one curve: the Dirichlet boundary silently lost its facets to
+    # the other group (a contact surface shrank so: normal force 33.0 against 49.7)
+    mesh_case("mesh_curve_in_two_groups", "'bottom' and 'base'", "shared_curve.msh"),
     # a boundary group off the cells: DOLFINx 0.5 crashed (free(): invalid pointer)
     mesh_case("mesh_curve_off_the_cells", "'floating'", "floating.msh"),
     square_case("mesh_curve_off_the_cells_as_master", 2, "'floating'",
@@ -714,6 +719,20 @@ SVK = edit(BLOCK, ("bodies[0].material.model", "svk"), ("dirichlet", [
 #: the top pushed 1.5 down on a block 1 high: from t = 2/3 on every state is inverted
 SQUASHED = edit(SVK, ("pressures", []), ("dirichlet[+]", {"boundary": "top", "y": -1.5}),
                 ("steps.max_cuts", 3))
+#: two blocks, the upper one 4 x 4 elements of 0.25, placed 0.5 deep inside the lower
+DEEP_OVERLAP = {
+    "title": "deep initial overlap",
+    "mesh": {"generator": "stacked_blocks", "params": {
+        "lower_width": 2.0, "lower_nx": 8, "lower_ny": 4, "upper_x0": 0.5, "upper_width": 1.0,
+        "upper_height": 1.0, "upper_nx": 4, "upper_ny": 4, "gap": -0.5}},
+    "bodies": [{"name": n, "material": {"model": "neo-hooke", "E": 1000.0, "nu": 0.3}}
+               for n in ("lower", "upper")],
+    "dirichlet": [{"boundary": "lower_bottom", "x": 0.0, "y": 0.0},
+                  {"boundary": "upper_top", "x": 0.0, "y": -0.05}],
+    "contacts": [{"name": "c", "slave": "upper_bottom", "master": "lower_top"}],
+    "steps": {"count": 2},
+    "output": {"xdmf": False, "plots": False},
+}
 add(
     # past SVK's limit load Newton finds the inverted branch (J = -1.08 in every cell)
     Case("svk_inverted", 1, "inverts", SVK, stage="run"),
@@ -724,6 +743,11 @@ add(
     # Newton's answer was |u| = 1e14 with zero reactions (the follower pressure on a
     # collapsed edge), accepted as converged: now refused, the run stops (exit 1)
     Case("E_tiny_flies_off", 1, "NOT converged", base(("bodies[0].material.E", 1e-12)),
+         stage="run"),
+    # the upper block 0.5 = two elements inside the lower one: converged with the slave
+    # folded (its corner cells inverted between the Gauss points), exit 0; now the step is
+    # cut, the run stops (exit 1), and a warning said why at the start
+    Case("initial_overlap_two_elements", 1, "start inside the master", DEEP_OVERLAP,
          stage="run"),
     Case("factorization_fails", 1, "factorization",
          base(PENALTY, ("steps.max_cuts", 1), ("solver", {"petsc": {

@@ -101,6 +101,13 @@ def floating():
     _groups({"block": [s]}, {**dict(zip(SIDES, ([x] for x in c))), "floating": [line]})
 
 
+def shared_curve():
+    """The unit square with its bottom in two physical curve groups, "bottom" and "base":
+    a facet keeps one tag (DOLFINx), so one group would silently lose its facets."""
+    s, c = _square(0.0, 1.0, 2, True)
+    _groups({"block": [s]}, {**dict(zip(SIDES, ([x] for x in c))), "base": [c[0]]})
+
+
 def main() -> None:
     HERE.mkdir(exist_ok=True)
     _write("square.msh", unit_square())
@@ -111,6 +118,7 @@ def main() -> None:
     _write("overlap.msh", overlap)
     _write("lines_only.msh", lines_only, dim=1)
     _write("floating.msh", floating)
+    _write("shared_curve.msh", shared_curve)
     # a unit square and, beside it, a quadrilateral whose four corners lie on one line
     # (zero area), written by hand (gmsh 2.2)
     (HERE / "zero_area.msh").write_text(
@@ -119,6 +127,13 @@ def main() -> None:
         "3 2 0 0\n4 0 1 0\n5 1 1 0\n6 3 0 0\n7 4 0 0\n$EndNodes\n$Elements\n4\n"
         "1 1 2 2 1 1 2\n2 1 2 3 3 4 5\n3 3 2 1 1 1 2 5 4\n4 3 2 1 1 3 6 7 2\n"
         "$EndElements\n")
+    # the unit square as one quadrilateral, listed twice (DOLFINx 0.5: a PETSc SEGV and a
+    # process that hangs)
+    (HERE / "duplicate_cell.msh").write_text(
+        "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$PhysicalNames\n3\n1 2 \"bottom\"\n"
+        "1 3 \"top\"\n2 1 \"block\"\n$EndPhysicalNames\n$Nodes\n4\n1 0 0 0\n2 1 0 0\n"
+        "3 1 1 0\n4 0 1 0\n$EndNodes\n$Elements\n4\n1 1 2 2 1 1 2\n2 1 2 3 3 3 4\n"
+        "3 3 2 1 1 1 2 3 4\n4 3 2 1 1 1 2 3 4\n$EndElements\n")
     (HERE / "points_only.msh").write_text(
         "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n3\n1 0 0 0\n2 1 0 0\n3 0 1 0\n"
         "$EndNodes\n$Elements\n0\n$EndElements\n")
