@@ -6,8 +6,8 @@ converged physical solution, and no input the solver would choke on reaches it u
 * :func:`check_tolerance` compares ``solver.atol`` with the loads' residual scale;
 * :class:`StepGuard` is the solver's last word on a converged load step: the SNES stopped
   by the convergence rule, and the solution inverts no cell (J = det F ≤ 0 at a quadrature
-  point or a corner: SVK, say, has such solutions); otherwise the step failed (it is cut, then the run
-  stops saying which cells);
+  point or a corner: SVK, say, has such solutions); otherwise the step failed (it is cut,
+  then the run stops saying which cells);
 * :func:`linear_failure` turns a failed factorization (MUMPS INFOG(1) < 0, a zero pivot)
   into the step's failure message;
 * :func:`penetration_warning`: a penalty pair whose penetration exceeds a tenth of the
