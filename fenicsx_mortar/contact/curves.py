@@ -743,9 +743,9 @@ class BSpline(MasterCurve):
     the kernels' derivatives (taken with respect to P, mapped to X by ``point_map``) are
     exact. Rebuilding the parametrization from moved nodes changes ū (chord lengths) and
     therefore the curve between the nodes by O(|ΔX|); the tangent does not contain that
-    term. Intended use: build once per load step (or once per Newton solve) and call
-    :meth:`with_nodes` at every iterate — the interpolation condition x(ū_k) = x_k holds
-    for any X, only the parametrization stops being exactly chord-length.
+    term. Intended use (contact/pair.py): build once from the reference configuration and
+    call :meth:`with_nodes` at every iterate — the interpolation condition x(ū_k) = x_k
+    holds for any X, only the parametrization stops being exactly chord-length.
     """
 
     stencil_size = 6

@@ -99,8 +99,10 @@ class ContactPair:
         # in explicit zeros of the couplings' pattern)
         self.radius = search_radius or 2.0 * s.lengths()
         self.dofs = np.concatenate([s.dofs.ravel(), m.dofs.ravel()])
-        # the master curve: rebuilt from the converged nodes at each load step (the B-spline
-        # freezes its parametrization there, docs/design.md §6), moved with the nodes in between
+        # the master curve, moved with the nodes; the B-spline's parametrization is that of
+        # the reference configuration for the whole run (docs/design.md §6): rebuilt from
+        # each step's converged nodes it moved the curve between the nodes at every step
+        # start, and on the level-3 half-rings every full turn increment then failed
         self._curve = make_curve(smoothing, m.X, m.seg)
         self.weight = s.owned.astype(float)
         # this rank integrates the slave segments touching the nodes whose dofs it owns and
@@ -223,7 +225,6 @@ class ContactPair:
         self.augmentations = 0
         self._first_jacobian = True
         if self.state is not None:
-            self._curve = make_curve(self.smoothing, self.state.xm, self.master.seg)
             self._start = (self.state.xs, self.state.xm)
 
     def passed_through(self) -> str | None:
