@@ -117,6 +117,7 @@ def unit_square(comm: MPI.Comm, nx: int, ny: int) -> Mesh:
 
 def midpoints(msh: Mesh, dim: int, entities: np.ndarray) -> np.ndarray:
     """(n, 3) midpoints of the given local entities of dimension ``dim``."""
+    msh.topology.create_connectivity(dim, msh.topology.dim)   # 0.9 needs it, 0.5 not
     return dmesh.compute_midpoints(msh, dim, np.asarray(entities, dtype=np.int32))
 
 
