@@ -145,15 +145,16 @@ def _check_curves(model, x: np.ndarray, cells: np.ndarray, where: str) -> None:
     lo, hi = np.minimum(a, b).ravel(), np.maximum(a, b).ravel()
     n = len(x)
     edges = np.unique(lo * n + hi)
-    owner: dict[int, str] = {}
+    names, keys, groups = [], [], []
     for dim, tag in model.getPhysicalGroups(1):
         name = model.getPhysicalName(dim, tag) or str(tag)
-        mine = []
+        names.append(name)
         for entity in model.getEntitiesForPhysicalGroup(dim, tag):
             for etype, _, nodes in zip(*model.mesh.getElements(1, entity)):
                 k = model.mesh.getElementProperties(etype)[3]
                 seg = np.asarray(nodes, dtype=np.int64).reshape(-1, k)[:, :2]
-                off = ~np.isin(seg.min(axis=1) * n + seg.max(axis=1), edges)
+                key = seg.min(axis=1) * n + seg.max(axis=1)
+                off = ~np.isin(key, edges)
                 if off.any():
                     p0, p1 = x[seg[np.flatnonzero(off)[0]]]
                     raise SceneError(
@@ -161,16 +162,21 @@ def _check_curves(model, x: np.ndarray, cells: np.ndarray, where: str) -> None:
                         f"that are no cell's edge (the first from ({p0[0]:.6g}, "
                         f"{p0[1]:.6g}) to ({p1[0]:.6g}, {p1[1]:.6g})): a boundary group "
                         "must lie on the cells of the bodies")
-                mine.append(seg.min(axis=1) * n + seg.max(axis=1))
-        for key in np.unique(np.concatenate(mine)) if mine else ():
-            other = owner.setdefault(int(key), name)
-            if other != name:
-                p0, p1 = x[int(key) // n], x[int(key) % n]
-                raise SceneError(
-                    f"{where}: the segment from ({p0[0]:.6g}, {p0[1]:.6g}) to ({p1[0]:.6g}, "
-                    f"{p1[1]:.6g}) is in two physical curve groups, {other!r} and {name!r}: "
-                    "a facet keeps one tag, so one group would silently lose it; make the "
-                    "groups disjoint and list several in a scene key instead")
+                keys.append(key)
+                groups.append(np.full(len(key), len(names) - 1))
+    if not keys:
+        return
+    # (segment, group) pairs without repeats: a segment listed twice by one group is fine
+    pairs = np.unique(np.column_stack([np.concatenate(keys), np.concatenate(groups)]), axis=0)
+    shared = np.flatnonzero(pairs[1:, 0] == pairs[:-1, 0])
+    if shared.size:
+        key, (g0, g1) = int(pairs[shared[0], 0]), pairs[shared[0]:shared[0] + 2, 1]
+        p0, p1 = x[key // n], x[key % n]
+        raise SceneError(
+            f"{where}: the segment from ({p0[0]:.6g}, {p0[1]:.6g}) to ({p1[0]:.6g}, "
+            f"{p1[1]:.6g}) is in two physical curve groups, {names[g0]!r} and {names[g1]!r}: "
+            "a facet keeps one tag, so one group would silently lose it; make the "
+            "groups disjoint and list several in a scene key instead")
 
 
 def _check_areas(x: np.ndarray, cells: np.ndarray, where: str) -> None:

@@ -93,7 +93,6 @@ class ContactPair:
         self.discretization = kind(s, m, n_gauss, basis=basis,
                                    slave_smoothing=slave_smoothing)
         self.friction = FRICTION_LAWS[friction](mu, self.enforcement.epsilon0, s.n)
-        self.smoothing = smoothing
         # two of the slave segment's own lengths: the mean would search a graded mesh's
         # refined zone with the coarse part's reach (Hertz a/10: 15 h_c, half the LU's work
         # in explicit zeros of the couplings' pattern)

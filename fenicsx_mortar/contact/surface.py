@@ -154,7 +154,6 @@ def build_surface(V, facet_tags, values: int | Sequence[int], name: str,
     return Surface(name, X, dofs, seg, tags[0], mine, mine_local[first], comm)
 
 
-
 def _check_chain(name: str, X: np.ndarray, seg: np.ndarray) -> None:
     """A surface is one or more simple chains: no node in more than two segments (a
     branch, two facets of the body meeting at a pinched node)."""
