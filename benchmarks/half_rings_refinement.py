@@ -4,6 +4,7 @@ reaction an error of the smoothed masters, or of the mesh?
     .venv/bin/python benchmarks/half_rings_refinement.py                 # 4 levels × 3 masters
     .venv/bin/python benchmarks/half_rings_refinement.py --levels 3      # one level (the others
                                                                          # kept from the JSON)
+    .venv/bin/python benchmarks/half_rings_refinement.py --levels 0,1 --only bspline
     .venv/bin/python benchmarks/half_rings_refinement.py --redraw        # table + plot from JSON
 
 The run of ``benchmarks/half_rings_smoothing.py`` (μ = 0.3, the scene's Lagrange multipliers,
@@ -16,9 +17,9 @@ Per run, over the turn's 20 target states φ_j (as there):
 * osc R_x = mean |Δ²R_x| / max |R_x| (the sawtooth measure of docs/friction.md), and the same
   for the force near the master's end F_x,end and the interior force R_x,int;
 * the error of R_x against the reference curve, max_j |R_x − R_x^ref| / max_j |R_x^ref| and
-  its mean over j, where R_x^ref is the mean of the finest level's three runs (no master
-  favoured); how far each of them is from that mean (the finest rows of the table) bounds
-  how well the reference itself is known.
+  its mean over j, where R_x^ref is the mean of the finest level's runs that completed (no
+  master favoured); how far each of them is from that mean (the finest rows of the table)
+  bounds how well the reference itself is known.
 
 Expected result: the sawtooth shrinks under refinement for every master, and at every level
 the smoothed masters' R_x is at least as close to the reference as the polyline's. If the
@@ -78,9 +79,10 @@ def error_to(curve: np.ndarray, ref: np.ndarray) -> tuple[float, float]:
 
 
 def reference(runs: list[dict]) -> np.ndarray:
-    """R_x^ref: the mean curve of the finest level's runs."""
+    """R_x^ref: the mean curve of the finest level's runs that completed the path."""
     finest = max(r["level"] for r in runs)
-    return np.mean([turn_curve(r) for r in runs if r["level"] == finest], axis=0)
+    return np.mean([turn_curve(r) for r in runs if r["level"] == finest and r["completed"]],
+                   axis=0)
 
 
 def table(runs: list[dict]) -> str:
@@ -130,6 +132,8 @@ def plot(runs: list[dict]) -> None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--levels", default="0,1,2,3", help="comma-separated refinement levels")
+    ap.add_argument("--only", default=",".join(MASTERS),
+                    help="comma-separated masters to run (the others' saved runs are kept)")
     ap.add_argument("--jobs", type=int, default=2, help="worker processes (at most 2)")
     ap.add_argument("--wall-limit", type=float, default=3600.0, help="per run, seconds")
     ap.add_argument("--redraw", action="store_true", help="no solve: table and plot from JSON")
@@ -139,6 +143,7 @@ def main() -> None:
         runs = json.loads(DATA.read_text())
     else:
         levels = [int(v) for v in args.levels.split(",")]
+        masters = [m for m in MASTERS if m in args.only.split(",")]
         runs: list[dict] = []
 
         def finished(out: pool.Outcome) -> None:
@@ -150,11 +155,12 @@ def main() -> None:
         # the finest level first: its runs are the longest
         jobs = [pool.Job(dict(name=f"L{L}_{s}", level=L, smoothing=s,
                               wall_limit=args.wall_limit), tag=f"L{L}_{s}")
-                for L in sorted(levels, reverse=True) for s in MASTERS]
+                for L in sorted(levels, reverse=True) for s in masters]
         pool.run("benchmarks.half_rings_refinement:run_job", jobs, finished,
                  workers=max(1, min(args.jobs, 2)), output=None)
-        if DATA.exists():  # keep the saved runs of the levels not run now
-            runs += [r for r in json.loads(DATA.read_text()) if r["level"] not in levels]
+        if DATA.exists():  # keep the saved runs not made now
+            runs += [r for r in json.loads(DATA.read_text())
+                     if r["level"] not in levels or r["smoothing"] not in masters]
         DATA.write_text(json.dumps(runs) + "\n")
     plot(runs)
     print(table(runs))
