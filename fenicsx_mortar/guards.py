@@ -180,18 +180,21 @@ _MUMPS = {-10: ": the matrix is numerically singular (a body or a direction left
 
 def check_tolerance(scene: Scene, bulk, samples: int = 16) -> None:
     """``solver.atol`` within ATOL_RANGE of the loads' residual scale: the largest ‖R(u =
-    0)‖ (bulk forms, Dirichlet rows included, as Newton's first residual) over up to
-    ``samples`` load-step targets. A scene without loads (scale 0) is not checked.
-    Collective; call before the first step (u = 0)."""
+    0)‖ (bulk forms, Dirichlet rows included, as Newton's first residual) over the load
+    path, sampled at up to ``samples`` load-step targets (the last one included) and as
+    many evenly spaced pseudo-times (a step's cuts visit those: a full turn in one step has
+    no load at its target). A scene without loads (scale 0) is not checked. Collective;
+    call before the first step (u = 0)."""
     targets = scene.steps.targets()
-    pick = sorted({round(i * (len(targets) - 1) / max(samples - 1, 1))
-                   for i in range(min(samples, len(targets)))})
+    m = min(samples, len(targets))
+    times = {targets[round(i * (len(targets) - 1) / max(m - 1, 1))] for i in range(m)}
+    times |= {targets[-1] * (i + 1) / samples for i in range(samples)}
     b = dx.create_vector(bulk.residual)
     x = b.duplicate()
     x.set(0.0)
     scale = 0.0
-    for i in pick:
-        bulk.set_time(targets[i])
+    for t in sorted(times):
+        bulk.set_time(t)
         dx.assemble_residual(b, bulk.residual, bulk.jacobian, bulk.bcs, x)
         scale = max(scale, b.norm())
     bulk.set_time(0.0)
@@ -201,7 +204,7 @@ def check_tolerance(scene: Scene, bulk, samples: int = 16) -> None:
     low, high = ATOL_RANGE
     if scale > 0 and not low * scale <= atol <= high * scale:
         raise SceneError(f"solver.atol = {atol:g}: must lie in [{low:g}, {high:g}] x the loads' "
-                         f"residual scale {scale:.3g} (|R| at u = 0 over the load steps): "
+                         f"residual scale {scale:.3g} (|R| at u = 0 over the load path): "
                          + ("a larger atol passes u = 0 as converged" if atol > high * scale
                             else "a smaller one is below round-off"))
 

@@ -452,6 +452,15 @@ add(
           ("solver", {"quadrature_degree": 40}), hazard="unchecked"),
     value("atol_huge", "solver.atol", ("solver", {"atol": 1e30}), stage="run"),
     value("atol_below_roundoff", "solver.atol", ("solver", {"atol": 1e-300}), stage="run"),
+    # the load comes after the first target: the check must see the last one (it looked
+    # at the first only and passed u = 0 as the answer under the load)
+    value("atol_above_late_load", "solver.atol",
+          ("curves", {"late": {"t": [0.0, 1.0, 2.0], "value": [0.0, 0.0, 1.0]}}),
+          ("pressures[0].value", 1e-4), ("pressures[0].curve", "late"),
+          ("steps", {"times": [1.0, 2.0]}), ("solver", {"atol": 1e-4}), stage="run"),
+    # a tiny first step under a full load later: the default atol is right for the path
+    Case("atol_tiny_first_steps", 0, "done", base(("steps", {"times": [1e-9, 2e-9, 1.0]})),
+         stage="run"),
 )
 
 # -- mesh generator parameters: cell counts estimated before meshing; gmsh's limits -------
