@@ -104,6 +104,13 @@ def facet_cells(msh: Mesh):
     return msh.topology.connectivity(tdim - 1, tdim)
 
 
+def exterior_facets(msh: Mesh) -> np.ndarray:
+    """The owned facets that bound one cell globally (collective)."""
+    tdim = msh.topology.dim
+    msh.topology.create_connectivity(tdim - 1, tdim)
+    return dmesh.exterior_facet_indices(msh.topology)
+
+
 def facet_vertices(msh: Mesh):
     tdim = msh.topology.dim
     msh.topology.create_connectivity(tdim - 1, 0)

@@ -55,6 +55,7 @@ def _build_model(scene: Scene):
         path = scene.mesh_file()
         if not path.is_file():
             raise SceneError(f"mesh.file: {path} does not exist")
+        _check_names(path)
         try:
             gmsh.open(str(path))
         except Exception as e:  # gmsh raises bare Exception on unreadable files
@@ -72,7 +73,61 @@ def _build_model(scene: Scene):
             groups[dim][gmsh.model.getPhysicalName(dim, tag) or str(tag)] = tag
     if not groups[2]:
         raise SceneError("mesh: no physical surface groups (bodies need named 2D groups)")
+    if ms.generator is None:
+        _warn_nameless(scene, groups)
     return groups
+
+
+def _warn_nameless(scene: Scene, groups: dict[int, dict[str, int]]) -> None:
+    """A physical group without a name among named ones that the scene does not use: gmsh
+    drops a name given to two groups (setPhysicalName), and the group left nameless may be
+    a part of the boundary the scene means by that name."""
+    import warnings
+
+    import gmsh
+    used = set().union(*scene.groups_used())
+    for dim, kind in ((1, "curve"), (2, "surface")):
+        named = [n for n, t in groups[dim].items() if gmsh.model.getPhysicalName(dim, t)]
+        nameless = [n for n, t in groups[dim].items()
+                    if not gmsh.model.getPhysicalName(dim, t) and n not in used]
+        if named and nameless:
+            warnings.warn(f"mesh.file: physical {kind} group(s) {', '.join(nameless)} have no "
+                          "name while the others have one (gmsh keeps a name given to two "
+                          "groups on one of them only); the scene does not use them",
+                          stacklevel=2)
+
+
+def _check_names(path) -> None:
+    """No physical name on two groups of one dimension: gmsh keeps it on one and leaves the
+    others nameless, so a scene naming it would get part of the group (a support on half
+    its boundary, exit 0). Reads the $PhysicalNames section, which is text in every format
+    and comes before the nodes."""
+    import re
+    seen: dict[tuple[int, str], int] = {}
+    inside = False
+    try:
+        with open(path, "rb") as f:
+            for raw in f:
+                line = raw.strip()
+                if line == b"$PhysicalNames":
+                    inside = True
+                elif line == b"$EndPhysicalNames" or line in (b"$Entities", b"$Nodes"):
+                    return
+                elif inside:
+                    m = re.fullmatch(rb'(\d+)\s+(\d+)\s+"(.*)"', line)
+                    if m is None:
+                        continue
+                    key = (int(m[1]), m[3].decode("utf-8", "replace"))
+                    tag = int(m[2])
+                    if seen.setdefault(key, tag) != tag:
+                        kind = {0: "point", 1: "curve", 2: "surface"}.get(key[0], "volume")
+                        raise SceneError(
+                            f"mesh.file: {path}: the physical name {key[1]!r} is on two {kind} "
+                            f"groups (tags {seen[key]} and {tag}): gmsh keeps it on one only, "
+                            "and a scene naming it would get part of the boundary; merge "
+                            "them into one group or rename one")
+    except OSError:
+        return  # gmsh reports the unreadable file
 
 
 #: gmsh element types of the linear cells DOLFINx 0.5 reads here: triangle 3, quadrangle 4
@@ -180,15 +235,29 @@ def _check_curves(model, x: np.ndarray, cells: np.ndarray, where: str) -> None:
 
 
 def _check_areas(x: np.ndarray, cells: np.ndarray, where: str) -> None:
+    """No cell of zero area, and no folded quadrilateral: its bilinear map is one-to-one only
+    if the corners turn the same way (J is affine in each reference coordinate, so its sign
+    at the corners is the test); a reentrant corner gives J < 0 there while the area is
+    still positive (the step guard would refuse every state, the first one included)."""
     p = x[cells]                                         # (n, k, 2) corners in order
     q = np.roll(p, -1, axis=1)
-    area = 0.5 * np.abs(np.sum(p[..., 0] * q[..., 1] - q[..., 0] * p[..., 1], axis=1))
+    signed = 0.5 * np.sum(p[..., 0] * q[..., 1] - q[..., 0] * p[..., 1], axis=1)
     scale = float(np.ptp(p.reshape(-1, 2), axis=0).max()) ** 2
-    bad = np.flatnonzero(area <= 1e-14 * scale)
+    bad = np.flatnonzero(np.abs(signed) <= 1e-14 * scale)
     if bad.size:
         c = p[bad[0]].mean(axis=0)
         raise SceneError(f"{where}: {bad.size} cell(s) of zero area (the first at "
                          f"({c[0]:.6g}, {c[1]:.6g}))")
+    e_next, e_prev = q - p, np.roll(p, 1, axis=1) - p
+    turn = np.sign(signed)[:, None] * (e_next[..., 0] * e_prev[..., 1]
+                                       - e_next[..., 1] * e_prev[..., 0])
+    folded = np.flatnonzero((turn <= 1e-14 * scale).any(axis=1))
+    if folded.size:
+        cell = folded[0]
+        corner = p[cell, int(np.argmin(turn[cell]))]
+        raise SceneError(f"{where}: {folded.size} folded cell(s): a quadrilateral whose corner "
+                         f"at ({corner[0]:.6g}, {corner[1]:.6g}) turns the other way (not "
+                         "convex): its map to the reference square is not one-to-one")
 
 
 def _gmsh_initialize(gmsh) -> None:
@@ -243,7 +312,34 @@ def _check_groups(scene: Scene, dom: Domain, comm: MPI.Comm) -> None:
                              f"(it has: {', '.join(sorted(dom.facet_groups)) or 'none'})")
         if comm.allreduce(len(dom.facets(name)), op=MPI.SUM) == 0:
             raise SceneError(f"physical curve group {name!r} has no facets in the mesh")
+    _check_loads_on_boundary(scene, dom, comm)
     for name in sorted(set(dom.cell_groups) - cells):
         raise SceneError(f"mesh: physical surface group {name!r} is no body's region (its "
                          "cells would have no material: a singular stiffness); add a body "
                          "on it or remove it from the mesh")
+
+
+def _check_loads_on_boundary(scene: Scene, dom: Domain, comm: MPI.Comm) -> None:
+    """Pressures and tractions act on exterior facets (``ds``): on a curve group inside a
+    body they would be dropped without a word."""
+    keys: dict[str, str] = {}
+    for kind, items in (("pressures", scene.pressures), ("tractions", scene.tractions)):
+        for i, item in enumerate(items):
+            for name in [item.boundary] if isinstance(item.boundary, str) else item.boundary:
+                keys.setdefault(name, f"{kind}[{i}].boundary")
+    if not keys:
+        return
+    outer = dx.exterior_facets(dom.mesh)
+    owned = dx.num_owned_facets(dom.mesh)
+    for name, key in keys.items():
+        f = dom.facets(name)
+        inner = f[(f < owned) & ~np.isin(f, outer)]
+        first = dx.midpoints(dom.mesh, 1, inner[:1])[0, :2].tolist() if inner.size else None
+        counts = comm.allgather((inner.size, first))
+        n = sum(c for c, _ in counts)
+        if n:
+            x, y = next(p for c, p in counts if c)
+            raise SceneError(f"{key}: {n} facet(s) of physical curve group {name!r} lie inside "
+                             f"the mesh, between two cells (the first at ({x:.6g}, {y:.6g})); "
+                             "a load acts on a body's boundary only, and these would be "
+                             "ignored")

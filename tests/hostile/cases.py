@@ -718,6 +718,17 @@ add(
     Case("mesh_fifo", 2, "fifo.msh", square()[0] | {"mesh": {"file": "fifo.msh"}},
          prepare=fifo("fifo.msh")),
     square_case("mesh_control", 0, "done", stage="run"),
+    # a quadrilateral with a reentrant corner has positive area but J < 0 at that corner
+    mesh_case("mesh_folded_cell", "folded cell", "folded.msh"),
+    # a pressure on a curve inside the body: ds never saw it, the load was dropped (exit 0)
+    square_case("mesh_pressure_inside", 2, "'cut'", ("pressures[0].boundary", "cut"),
+                mesh="interior_curve.msh", stage="mesh"),
+    # one name on two curve groups: gmsh names one, the support covered half the bottom
+    mesh_case("mesh_name_on_two_groups", "'bottom'", "name_twice.msh"),
+    # what gmsh itself writes when a name was given twice: a nameless group, warned of
+    square_case("mesh_nameless_group", 0, "done", mesh="nameless_curve.msh", stage="run",
+                mode="process", check=lambda d, out, err: "" if "have no name" in err
+                else "no warning of the nameless group"),
 )
 
 # -- physics guards -----------------------------------------------------------------------
