@@ -35,23 +35,39 @@ def scene_fingerprint(scene_json: str) -> str:
     return hashlib.sha256(scene_json.encode()).hexdigest()
 
 
-def mesh_fingerprint(msh, comm: MPI.Comm) -> str:
-    """Of the mesh whatever its distribution: nodes (input number, x, y) and cells (their
-    nodes' input numbers, sorted), gathered and sorted on rank 0 (collective)."""
+def mesh_fingerprint(dom, comm: MPI.Comm) -> str:
+    """Of the mesh whatever its distribution: nodes (input number, x, y), cells (their
+    nodes' input numbers, sorted, and their group's name) and the tagged facets (midpoint
+    and group name), gathered and sorted on rank 0 (collective). The groups count: a mesh
+    file with the same cells but a boundary moved to another group is another problem."""
+    msh = dom.mesh
     idx = dx.input_node_numbers(msh).astype(np.int64)
     x = np.ascontiguousarray(dx.node_coordinates(msh), dtype=np.float64)
-    cells = np.sort(idx[dx.cell_nodes(msh)[: dx.num_owned_cells(msh)]], axis=1)
-    parts = comm.gather((idx, x, cells), root=0)
+    n_own = dx.num_owned_cells(msh)
+    cells = np.sort(idx[dx.cell_nodes(msh)[:n_own]], axis=1)
+    cell_names = {t: n for n, t in dom.cell_groups.items()}
+    tag = np.full(dx.num_cells(msh), -1)
+    tag[dom.cell_tags.indices] = dom.cell_tags.values
+    body = [cell_names.get(int(t), "") for t in tag[:n_own]]
+    facet_names = {t: n for n, t in dom.facet_groups.items()}
+    ft = dom.facet_tags
+    mid = dx.midpoints(msh, 1, ft.indices)[:, :2] if len(ft.indices) else np.zeros((0, 2))
+    facets = [(float(m[0]), float(m[1]), facet_names.get(int(t), ""))
+              for m, t in zip(mid, ft.values)]
+    parts = comm.gather((idx, x, cells, body, facets), root=0)
     digest = None
     if comm.rank == 0:
         idx = np.concatenate([p[0] for p in parts])
         x = np.concatenate([p[1] for p in parts])
         idx, first = np.unique(idx, return_index=True)
         cells = np.concatenate([p[2] for p in parts])
-        cells = cells[np.lexsort(cells.T[::-1])]
+        body = [b for p in parts for b in p[3]]
+        order = np.lexsort(cells.T[::-1])
         h = hashlib.sha256()
-        for a in (idx, x[first], cells):
+        for a in (idx, x[first], cells[order]):
             h.update(np.ascontiguousarray(a).tobytes())
+        h.update("\n".join(body[i] for i in order).encode())
+        h.update(repr(sorted({f for p in parts for f in p[4]})).encode())
         digest = h.hexdigest()
     return comm.bcast(digest, root=0)
 

@@ -111,7 +111,7 @@ def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM
     _enter("setting up the contact pairs and the solver")
     pairs = scene_pairs(scene, dom, bulk.V) if scene.contacts else []
     fingerprints = (checkpoint.scene_fingerprint(scene_to_json(scene)),
-                    checkpoint.mesh_fingerprint(dom.mesh, comm))
+                    checkpoint.mesh_fingerprint(dom, comm))
     t0, k0, steps = 0.0, 0, []
     if restart:
         t0, k0, steps = checkpoint.load(out, comm, bulk.u, pairs, saved, fingerprints[1])

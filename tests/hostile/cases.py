@@ -657,6 +657,18 @@ def _run_then_move_a_node(d: Path, donors) -> None:
     shutil.copyfile(d / "out/summary.json", d / "summary.before")
 
 
+def _run_then_regroup(d: Path, donors) -> None:
+    """A run on square.msh in D/out, then the mesh file's left side joins the "bottom"
+    group (the support): the same nodes and cells, another problem."""
+    donors.run_in(d, "run", str(d / "scene.toml"), "--out", str(d / "out"))
+    mesh = d / "square.msh"
+    text = mesh.read_text()
+    left = " 1 5 2 4 -1 \n"
+    assert left in text
+    mesh.write_text(text.replace(left, " 1 2 2 4 -1 \n", 1))
+    shutil.copyfile(d / "out/summary.json", d / "summary.before")
+
+
 add(
     Case("restart_with_a_scene", 2, "--restart", base(),
          argv=("run", "{scene}", "--restart", "{out}"), prepare=copy_donor(), hazard="ignored"),
@@ -685,6 +697,10 @@ add(
     checkpoint_case("checkpoint_of_another_run", _other_run, donor="base_p05"),
     square_case("checkpoint_of_another_mesh", 2, "mesh", argv=("run", "--restart", "{out}"),
                 prepare=_run_then_move_a_node, check=summary_unchanged, stage="mesh"),
+    # the fingerprint knew nodes and cells only: a boundary moved to another group was
+    # restarted as the old problem's continuation (exit 0, a mix of two problems)
+    square_case("checkpoint_of_regrouped_mesh", 2, "mesh", argv=("run", "--restart", "{out}"),
+                prepare=_run_then_regroup, check=summary_unchanged, stage="mesh"),
     Case("restart_control", 0, "done", None, argv=("run", "--restart", "{out}"),
          prepare=copy_donor(), stage="run"),
 )
