@@ -143,4 +143,5 @@ def _moved(c: NodalContributions, node: np.ndarray) -> NodalContributions:
     # Petrov–Galerkin test vectors (smoothed masters) are per contribution, summed by node
     # like the values: they move along with their rows
     out.test = c.test
+    out.psi = c.psi
     return out

@@ -56,6 +56,10 @@ class NodalContributions:
         #: Petrov–Galerkin test vectors replacing ∇value as the direction of the force
         #: (:class:`MasterTest`); None: the force is −p ∇value (variational)
         self.test: MasterTest | None = None
+        #: (nodal areas only) ∫ ψ_j dΓ of each contribution, ψ_j the weight of node j's
+        #: pressure: the normal force node j's pressure carries is p_j Σ psi (on a straight
+        #: segment); None: ψ = N (then it is the area)
+        self.psi: np.ndarray | None = None
 
     @property
     def hess(self) -> np.ndarray:

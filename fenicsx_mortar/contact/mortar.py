@@ -583,6 +583,8 @@ def weighted_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarr
     area = NodalContributions(node.copy(), slave_nodes.copy(), master_nodes.copy(),
                               val[1].reshape(2 * K), grad[1].reshape(2 * K, m), area_hessian,
                               None if tail_nodes is None else tail_nodes.copy())
+    if basis == "dual":   # ∫Φ_j ≠ ∫N_j where the master covers part of a segment only
+        area.psi = _dual(val[1]).reshape(2 * K)
 
     return gap, area
 

@@ -28,6 +28,22 @@ def _slave_total(pair, f: np.ndarray) -> np.ndarray:
     return comm.allreduce(total, op=MPI.SUM) if comm.size > 1 else total
 
 
+def _load_areas(pair) -> np.ndarray:
+    """Per slave node, ∫ψ_j dΓ over the part of its support that sees the master (ψ_j the
+    weight of its pressure): p_j times it is the normal force node j carries. It is the
+    nodal area A_j except for the dual basis where a segment is only partly over the
+    master and no neighbour took the node's terms: there ∫Φ_j can be near zero or negative
+    while A_j > 0, and Σ p A reported 1e4 × the force (a block sliding off a slab)."""
+    if getattr(pair.discretization, "basis", "standard") != "dual":
+        return pair.state.A
+    # decided by the basis, the same on every rank (owned_sum is collective): a rank
+    # without candidate pairs has empty contributions and no psi
+    area = pair.state.area
+    psi = area.value if area.psi is None else area.psi
+    s = pair.slave
+    return s.owned_sum(np.bincount(area.node, weights=psi, minlength=s.n))
+
+
 def pair_record(pair) -> dict:
     """{pair name: the step's contact record} (collective)."""
     st = pair.state
@@ -40,7 +56,7 @@ def pair_record(pair) -> dict:
     on = st.p > 0
     enf = pair.enforcement
     return {pair.name: {**extra,
-        "normal_force": float(np.sum(st.p * st.A)),
+        "normal_force": float(np.sum(st.p * _load_areas(pair))),
         "force_on_slave": [float(f[0]), float(f[1])],
         "max_pressure": float(st.p.max(initial=0.0)),
         "active_nodes": int(on.sum()),
