@@ -104,6 +104,16 @@ def facet_cells(msh: Mesh):
     return msh.topology.connectivity(tdim - 1, tdim)
 
 
+def is_p1_vector_space(V) -> bool:
+    """Two dofs at every vertex and no others: the P1 vector space of its mesh."""
+    return (V.dofmap.index_map_bs == 2
+            and V.dofmap.index_map.size_global == V.mesh.topology.index_map(0).size_global)
+
+
+def same_mesh(a: Mesh, b: Mesh) -> bool:
+    return a is b
+
+
 def exterior_facets(msh: Mesh) -> np.ndarray:
     """The owned facets that bound one cell globally (collective)."""
     tdim = msh.topology.dim

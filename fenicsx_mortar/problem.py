@@ -36,6 +36,12 @@ class ContactProblem:
         derivative of F in the direction of a trial function of u's space). ``settings``:
         Newton tolerances, line search, linear solver (:class:`~.scene.SolverSettings`);
         ``petsc_options`` are added to its ``petsc`` dict (keys with or without '-')."""
+        for k, p in enumerate(pairs):
+            if not dx.same_mesh(p.mesh, u.function_space.mesh):
+                raise ValueError(f"contact {p.name}: the pair was built on another mesh than "
+                                 "u's function space")
+            if any(q is p for q in pairs[:k]):
+                raise ValueError(f"contact {p.name}: the same pair is given twice")
         if J is None:
             J = ufl.derivative(F, u, ufl.TrialFunction(u.function_space))
         self.residual = F if not isinstance(F, ufl.Form) else dx.form(F)

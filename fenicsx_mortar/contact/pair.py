@@ -51,6 +51,10 @@ class ContactPair:
                  n_gauss: int | None = None, search_radius: float | None = None,
                  basis: str | None = None, slave_smoothing: str = "none"):
         self.name = name
+        _check_numbers(name, epsilon=epsilon, tolerance=tolerance, mu=mu, E=E,
+                       n_gauss=n_gauss, search_radius=search_radius, cell_tags=cell_tags)
+        #: the mesh of the displacement space the pair was built on
+        self.mesh = V.mesh
         self.slave = build_surface(V, facet_tags, slave, f"{name}:slave", cell_tags)
         self.master = build_surface(V, facet_tags, master, f"{name}:master", cell_tags)
         s, m = self.slave, self.master
@@ -61,6 +65,10 @@ class ContactPair:
         check_facing(name, self.slave, self.master)
         check_overlap(name, self.slave, self.master)
         if isinstance(E, Mapping):
+            missing = sorted({s.body_tag, m.body_tag} - set(E))
+            if missing:
+                raise ValueError(f"contact {name}: E has no value for the cell tag(s) "
+                                 f"{missing} of the bodies the surfaces bound")
             E, E_master = E[s.body_tag], E[m.body_tag]
             check_roles(name, s, m, E, E_master)
             if getattr(ENFORCEMENTS[enforcement], "unknowns", 0):
@@ -347,6 +355,34 @@ def _sum(parts):
     for p in parts[1:]:
         out = out + p
     return out
+
+
+def _check_numbers(name: str, *, epsilon, tolerance, mu, E, n_gauss, search_radius,
+                   cell_tags) -> None:
+    """The pair's numbers in their ranges, each refused by name (an ε ≤ 0 or a μ < 0 made
+    a converged answer with forces across open gaps, or friction that pushes)."""
+    def bad(key, value, rule):
+        raise ValueError(f"contact {name}: {key} = {value!r}: {rule}")
+
+    def positive(key, value):
+        v = np.asarray(value, dtype=float)
+        if v.size == 0 or not np.all(np.isfinite(v) & (v > 0)):
+            bad(key, value, "must be a finite number > 0")
+    for key, value in (("epsilon", epsilon), ("search_radius", search_radius)):
+        if value is not None:
+            positive(key, value)
+    positive("tolerance", tolerance)
+    if not (np.isfinite(mu) and mu >= 0):
+        bad("mu", mu, "the friction coefficient must be a finite number >= 0")
+    if n_gauss is not None and (int(n_gauss) != n_gauss or n_gauss < 2):
+        bad("n_gauss", n_gauss, "Gauss points per segment: an integer >= 2 (or None)")
+    if isinstance(E, Mapping):
+        if cell_tags is None:
+            bad("E", dict(E), "a mapping cell tag -> E needs cell_tags (which body is which)")
+        for tag, value in E.items():
+            positive(f"E[{tag}]", value)
+    elif E is not None:
+        positive("E", E)
 
 
 def check_facing(name: str, slave: Surface, master: Surface) -> None:

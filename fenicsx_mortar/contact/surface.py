@@ -86,6 +86,16 @@ def build_surface(V, facet_tags, values: int | Sequence[int], name: str,
     ``cell_tags`` the surface must bound cells of one tag (one body)."""
     msh = V.mesh
     comm = msh.comm
+    tdim = msh.topology.dim
+    if not dx.is_p1_vector_space(V):
+        raise ValueError(f"contact surface {name}: the displacement space must be the P1 "
+                         "vector space of the mesh (two dofs at every vertex); this one has "
+                         f"{dx.dof_count(V)} dofs for "
+                         f"{msh.topology.index_map(0).size_global} vertices")
+    for tags, dim, what in ((facet_tags, tdim - 1, "facet_tags"), (cell_tags, tdim, "cell_tags")):
+        if tags is not None and getattr(tags, "dim", dim) != dim:
+            raise ValueError(f"contact surface {name}: {what} are meshtags of dimension "
+                             f"{tags.dim}; they must be of dimension {dim}")
     values = np.atleast_1d(np.asarray(values))
     facets = np.sort(facet_tags.indices[np.isin(facet_tags.values, values)])
     facets = facets[facets < dx.num_owned_facets(msh)]
