@@ -124,7 +124,7 @@ def _check_names(path) -> None:
                         raise SceneError(
                             f"mesh.file: {path}: the physical name {key[1]!r} is on two {kind} "
                             f"groups (tags {seen[key]} and {tag}): gmsh keeps it on one only, "
-                            "and a scene naming it would get part of the boundary; merge "
+                            "and a scene naming it would get part of what it means; merge "
                             "them into one group or rename one")
     except OSError:
         return  # gmsh reports the unreadable file
@@ -206,6 +206,11 @@ def _check_curves(model, x: np.ndarray, cells: np.ndarray, where: str) -> None:
         names.append(name)
         for entity in model.getEntitiesForPhysicalGroup(dim, tag):
             for etype, _, nodes in zip(*model.mesh.getElements(1, entity)):
+                if etype != 1:   # DOLFINx drops other line types: the group came out empty
+                    raise SceneError(
+                        f"{where}: physical curve {name!r} has "
+                        f"{model.mesh.getElementProperties(etype)[0]} segments; boundary "
+                        "groups must be linear 2-node lines, like the cells")
                 k = model.mesh.getElementProperties(etype)[3]
                 seg = np.asarray(nodes, dtype=np.int64).reshape(-1, k)[:, :2]
                 key = seg.min(axis=1) * n + seg.max(axis=1)

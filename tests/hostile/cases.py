@@ -741,6 +741,9 @@ add(
                 mesh="interior_curve.msh", stage="mesh"),
     # one name on two curve groups: gmsh names one, the support covered half the bottom
     mesh_case("mesh_name_on_two_groups", "'bottom'", "name_twice.msh"),
+    # 3-node boundary lines beside linear cells: DOLFINx dropped them, "has no facets"
+    Case("mesh_line3_curves", 2, "Line 3", (HERE / "meshes/line3_curves.toml").read_text(),
+         files={"mesh.msh": MESHES / "line3_curves.msh"}, stage="mesh"),
     # what gmsh itself writes when a name was given twice: a nameless group, warned of
     square_case("mesh_nameless_group", 0, "done", mesh="nameless_curve.msh", stage="run",
                 mode="process", check=lambda d, out, err: "" if "have no name" in err
