@@ -97,7 +97,9 @@ def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM
     timings = Timings()
     t_start = time.perf_counter()
 
-    log(f"fenicsx_mortar: {scene.title or 'scene'}")
+    # the title is the user's text: control characters (escapes, CR) would drive the terminal
+    title = "".join(c if c.isprintable() else " " for c in scene.title or "scene")
+    log(f"fenicsx_mortar: {title}")
     for e in scene.effects():
         log(f"  effect: {e}")
 

@@ -595,6 +595,10 @@ add(
          .encode("latin-1")),
     Case("scene_utf16", 2, "scene.toml", BASE_TEXT.encode("utf-16")),
     # a UTF-8 byte-order mark (Windows editors) was a TOML syntax error "at line 1, column 1"
+    # control characters in the title reached the terminal raw (ESC sequences, CR)
+    Case("title_control_characters", 0, "fenicsx_mortar:  [2J [31mred second line carriage",
+         base(("title", "\x1b[2J\x1b[31mred\nsecond line\rcarriage")), stage="run",
+         hazard="unchecked"),
     Case("scene_utf8_bom", 0, "done", b"\xef\xbb\xbf" + BASE_TEXT.encode(), stage="run",
          hazard="ignored"),
     Case("scene_binary", 2, "scene.toml", bytes(range(256)) * 4),
