@@ -81,8 +81,10 @@ def error_to(curve: np.ndarray, ref: np.ndarray) -> tuple[float, float]:
 def reference(runs: list[dict]) -> np.ndarray:
     """R_x^ref: the mean curve of the finest level's runs that completed the path."""
     finest = max(r["level"] for r in runs)
-    return np.mean([turn_curve(r) for r in runs if r["level"] == finest and r["completed"]],
-                   axis=0)
+    done = [turn_curve(r) for r in runs if r["level"] == finest and r["completed"]]
+    if not done:
+        raise SystemExit(f"no run of the finest level ({finest}) completed: no reference")
+    return np.mean(done, axis=0)
 
 
 def table(runs: list[dict]) -> str:
@@ -143,6 +145,9 @@ def main() -> None:
         runs = json.loads(DATA.read_text())
     else:
         levels = [int(v) for v in args.levels.split(",")]
+        unknown = set(args.only.split(",")) - set(MASTERS)
+        if unknown:
+            ap.error(f"--only: unknown master(s) {sorted(unknown)}; choose from {MASTERS}")
         masters = [m for m in MASTERS if m in args.only.split(",")]
         runs: list[dict] = []
 

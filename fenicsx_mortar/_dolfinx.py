@@ -104,10 +104,18 @@ def facet_cells(msh: Mesh):
     return msh.topology.connectivity(tdim - 1, tdim)
 
 
+def topological_dimension(msh: Mesh) -> int:
+    return msh.topology.dim
+
+
+def num_vertices_global(msh: Mesh) -> int:
+    return msh.topology.index_map(0).size_global
+
+
 def is_p1_vector_space(V) -> bool:
     """Two dofs at every vertex and no others: the P1 vector space of its mesh."""
     return (V.dofmap.index_map_bs == 2
-            and V.dofmap.index_map.size_global == V.mesh.topology.index_map(0).size_global)
+            and V.dofmap.index_map.size_global == num_vertices_global(V.mesh))
 
 
 def same_mesh(a: Mesh, b: Mesh) -> bool:

@@ -98,34 +98,39 @@ def _warn_nameless(scene: Scene, groups: dict[int, dict[str, int]]) -> None:
 
 
 def _check_names(path) -> None:
-    """No physical name on two groups of one dimension: gmsh keeps it on one and leaves the
-    others nameless, so a scene naming it would get part of the group (a support on half
+    """No physical name on two curve or two surface groups: gmsh keeps it on one and leaves
+    the others nameless, so a scene naming it would get part of the group (a support on half
     its boundary, exit 0). Reads the $PhysicalNames section, which is text in every format
-    and comes before the nodes."""
+    and comes before the nodes (lines read with a length limit; the scan stops at the first
+    other section)."""
     import re
-    seen: dict[tuple[int, str], int] = {}
+    header = {b"$MeshFormat", b"$EndMeshFormat", b"$PhysicalNames", b"$Comments",
+              b"$EndComments"}
+    seen: dict[tuple[int, bytes], int] = {}
     inside = False
     try:
         with open(path, "rb") as f:
-            for raw in f:
+            for raw in iter(lambda: f.readline(4096), b""):
                 line = raw.strip()
+                if line == b"$EndPhysicalNames":
+                    return
+                if line.startswith(b"$") and line not in header:
+                    return
                 if line == b"$PhysicalNames":
                     inside = True
-                elif line == b"$EndPhysicalNames" or line in (b"$Entities", b"$Nodes"):
-                    return
-                elif inside:
-                    m = re.fullmatch(rb'(\d+)\s+(\d+)\s+"(.*)"', line)
-                    if m is None:
-                        continue
-                    key = (int(m[1]), m[3].decode("utf-8", "replace"))
-                    tag = int(m[2])
-                    if seen.setdefault(key, tag) != tag:
-                        kind = {0: "point", 1: "curve", 2: "surface"}.get(key[0], "volume")
-                        raise SceneError(
-                            f"mesh.file: {path}: the physical name {key[1]!r} is on two {kind} "
-                            f"groups (tags {seen[key]} and {tag}): gmsh keeps it on one only, "
-                            "and a scene naming it would get part of what it means; merge "
-                            "them into one group or rename one")
+                    continue
+                m = re.fullmatch(rb'(\d+)\s+(\d+)\s+"(.*)"', line) if inside else None
+                if m is None or int(m[1]) not in (1, 2):
+                    continue
+                key, tag = (int(m[1]), m[3]), int(m[2])
+                if seen.setdefault(key, tag) != tag:
+                    name = key[1].decode("utf-8", "replace")
+                    kind = "curve" if key[0] == 1 else "surface"
+                    raise SceneError(
+                        f"mesh.file: {path}: the physical name {name!r} is on two {kind} "
+                        f"groups (tags {seen[key]} and {tag}): gmsh keeps it on one only, "
+                        "and a scene naming it would get part of what it means; merge "
+                        "them into one group or rename one")
     except OSError:
         return  # gmsh reports the unreadable file
 
@@ -256,7 +261,8 @@ def _check_areas(x: np.ndarray, cells: np.ndarray, where: str) -> None:
     e_next, e_prev = q - p, np.roll(p, 1, axis=1) - p
     turn = np.sign(signed)[:, None] * (e_next[..., 0] * e_prev[..., 1]
                                        - e_next[..., 1] * e_prev[..., 0])
-    folded = np.flatnonzero((turn <= 1e-14 * scale).any(axis=1))
+    # a straight corner (180°, J = 0 there only) is accepted: some generators make them
+    folded = np.flatnonzero((turn < -1e-12 * scale).any(axis=1))
     if folded.size:
         cell = folded[0]
         corner = p[cell, int(np.argmin(turn[cell]))]

@@ -36,6 +36,10 @@ class ContactProblem:
         derivative of F in the direction of a trial function of u's space). ``settings``:
         Newton tolerances, line search, linear solver (:class:`~.scene.SolverSettings`);
         ``petsc_options`` are added to its ``petsc`` dict (keys with or without '-')."""
+        pairs = list(pairs)
+        if pairs and not dx.is_p1_vector_space(u.function_space):
+            raise ValueError("u: contact needs the displacement in the P1 vector space of the "
+                             "mesh (two dofs at every vertex)")
         for k, p in enumerate(pairs):
             if not dx.same_mesh(p.mesh, u.function_space.mesh):
                 raise ValueError(f"contact {p.name}: the pair was built on another mesh than "

@@ -364,18 +364,31 @@ def _check_numbers(name: str, *, epsilon, tolerance, mu, E, n_gauss, search_radi
     def bad(key, value, rule):
         raise ValueError(f"contact {name}: {key} = {value!r}: {rule}")
 
+    def number(key, value, rule):
+        try:
+            v = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            bad(key, value, rule)
+        if v.size == 0 or not np.all(np.isfinite(v)):
+            bad(key, value, rule)
+        return v
+
     def positive(key, value):
-        v = np.asarray(value, dtype=float)
-        if v.size == 0 or not np.all(np.isfinite(v) & (v > 0)):
-            bad(key, value, "must be a finite number > 0")
-    for key, value in (("epsilon", epsilon), ("search_radius", search_radius)):
+        rule = "must be a finite number > 0"
+        if not np.all(number(key, value, rule) > 0):
+            bad(key, value, rule)
+    for key, value in (("epsilon", epsilon), ("search_radius", search_radius),
+                       ("tolerance", tolerance)):
         if value is not None:
             positive(key, value)
-    positive("tolerance", tolerance)
-    if not (np.isfinite(mu) and mu >= 0):
-        bad("mu", mu, "the friction coefficient must be a finite number >= 0")
-    if n_gauss is not None and (int(n_gauss) != n_gauss or n_gauss < 2):
-        bad("n_gauss", n_gauss, "Gauss points per segment: an integer >= 2 (or None)")
+    rule = "the friction coefficient must be a finite number >= 0"
+    if not number("mu", mu, rule) >= 0:
+        bad("mu", mu, rule)
+    if n_gauss is not None:
+        rule = "Gauss points per segment: an integer >= 2 (or None)"
+        v = number("n_gauss", n_gauss, rule)
+        if v.ndim or v != np.round(v) or v < 2:
+            bad("n_gauss", n_gauss, rule)
     if isinstance(E, Mapping):
         if cell_tags is None:
             bad("E", dict(E), "a mapping cell tag -> E needs cell_tags (which body is which)")

@@ -86,12 +86,11 @@ def build_surface(V, facet_tags, values: int | Sequence[int], name: str,
     ``cell_tags`` the surface must bound cells of one tag (one body)."""
     msh = V.mesh
     comm = msh.comm
-    tdim = msh.topology.dim
+    tdim = dx.topological_dimension(msh)
     if not dx.is_p1_vector_space(V):
         raise ValueError(f"contact surface {name}: the displacement space must be the P1 "
                          "vector space of the mesh (two dofs at every vertex); this one has "
-                         f"{dx.dof_count(V)} dofs for "
-                         f"{msh.topology.index_map(0).size_global} vertices")
+                         f"{dx.dof_count(V)} dofs for {dx.num_vertices_global(msh)} vertices")
     for tags, dim, what in ((facet_tags, tdim - 1, "facet_tags"), (cell_tags, tdim, "cell_tags")):
         if tags is not None and getattr(tags, "dim", dim) != dim:
             raise ValueError(f"contact surface {name}: {what} are meshtags of dimension "

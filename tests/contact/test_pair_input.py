@@ -43,6 +43,8 @@ def test_facet_tags_must_be_facets(block_on_slab):
     ({"epsilon": float("nan")}, "epsilon"),
     ({"friction": "coulomb", "mu": -0.3}, "mu"),
     ({"n_gauss": 0}, "n_gauss"),
+    ({"n_gauss": float("inf")}, "n_gauss"),
+    ({"enforcement": "penalty", "epsilon": "stiff"}, "epsilon"),
     ({"search_radius": -1.0}, "search_radius"),
     ({"tolerance": -1.0}, "tolerance"),
     ({"E": 0.0}, "E"),
@@ -74,3 +76,13 @@ def test_the_problem_refuses_a_pair_twice_and_a_pair_of_another_mesh(block_on_sl
     q = ContactPair(V2, other.facet_tags, *tags, E=1000.0)
     with pytest.raises(ValueError, match="another mesh"):
         ContactProblem(F, u, [], [q])
+
+
+def test_the_problem_refuses_a_displacement_of_another_space(block_on_slab):
+    import ufl
+    dom, _, _ = block_on_slab
+    V2 = dx.api.functionspace(dom.mesh, ("Lagrange", 2, (2,)))
+    u = dx.Function(V2)
+    F = ufl.inner(ufl.grad(u), ufl.grad(ufl.TestFunction(V2))) * ufl.dx
+    with pytest.raises(ValueError, match="u: contact needs the displacement in the P1"):
+        ContactProblem(F, u, [], [pair(block_on_slab)])
