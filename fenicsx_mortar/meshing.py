@@ -10,7 +10,7 @@ from mpi4py import MPI
 
 from . import _dolfinx as dx
 from .parallel import wait_for_all
-from .scene import LIMITS, Scene, SceneError
+from .scene import LIMITS, Scene, SceneError, as_list
 
 
 @dataclass
@@ -87,10 +87,9 @@ def _warn_nameless(scene: Scene, groups: dict[int, dict[str, int]]) -> None:
     import gmsh
     used = set().union(*scene.groups_used())
     for dim, kind in ((1, "curve"), (2, "surface")):
-        named = [n for n, t in groups[dim].items() if gmsh.model.getPhysicalName(dim, t)]
-        nameless = [n for n, t in groups[dim].items()
-                    if not gmsh.model.getPhysicalName(dim, t) and n not in used]
-        if named and nameless:
+        has_name = {n: bool(gmsh.model.getPhysicalName(dim, t)) for n, t in groups[dim].items()}
+        nameless = [n for n, named in has_name.items() if not named and n not in used]
+        if nameless and any(has_name.values()):
             warnings.warn(f"mesh.file: physical {kind} group(s) {', '.join(nameless)} have no "
                           "name while the others have one (gmsh keeps a name given to two "
                           "groups on one of them only); the scene does not use them",
@@ -336,7 +335,7 @@ def _check_loads_on_boundary(scene: Scene, dom: Domain, comm: MPI.Comm) -> None:
     keys: dict[str, str] = {}
     for kind, items in (("pressures", scene.pressures), ("tractions", scene.tractions)):
         for i, item in enumerate(items):
-            for name in [item.boundary] if isinstance(item.boundary, str) else item.boundary:
+            for name in as_list(item.boundary):
                 keys.setdefault(name, f"{kind}[{i}].boundary")
     if not keys:
         return

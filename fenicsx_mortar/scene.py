@@ -131,7 +131,7 @@ class Dirichlet:
         if self.name:
             return self.name
         if self.boundary is not None:
-            return "+".join(_as_list(self.boundary))
+            return "+".join(as_list(self.boundary))
         return f"{self.body}@({self.point[0]:g},{self.point[1]:g})"
 
 
@@ -264,9 +264,9 @@ class Scene:
             out.append(f"dirichlet: {', '.join(d.label for d in self.dirichlet)}")
         for p in self.pressures:
             kind = "follower" if p.follower else "dead"
-            out.append(f"pressure ({kind}): {'+'.join(_as_list(p.boundary))}")
+            out.append(f"pressure ({kind}): {'+'.join(as_list(p.boundary))}")
         for t in self.tractions:
-            out.append(f"traction (dead): {'+'.join(_as_list(t.boundary))}")
+            out.append(f"traction (dead): {'+'.join(as_list(t.boundary))}")
         for c in self.contacts:
             fr = "frictionless" if c.friction.law == "none" else f"coulomb mu={c.friction.mu:g}"
             out.append(f"contact {c.name}: {c.method}, {c.enforcement.type}, {fr}, "
@@ -373,7 +373,7 @@ class Scene:
                 if d.body is not None:
                     raise SceneError(f"{key}.body = {d.body!r}: for a 'point' condition only "
                                      "(a boundary names its own nodes)")
-                places = _as_list(d.boundary)
+                places = as_list(d.boundary)
             if d.motion is not None:
                 if d.boundary is None or d.x is not None or d.y is not None:
                     raise SceneError(f"{key}.motion: a rigid motion moves a whole 'boundary' "
@@ -424,18 +424,18 @@ class Scene:
                                  f"{', '.join(map(repr, METHODS[c.method].bases))}")
             _check_groups(c.slave, f"{key}.slave")
             _check_groups(c.master, f"{key}.master")
-            both = sorted(set(_as_list(c.slave)) & set(_as_list(c.master)))
+            both = sorted(set(as_list(c.slave)) & set(as_list(c.master)))
             if both:
                 raise SceneError(f"{key}: slave and master surfaces must differ "
                                  f"(both name {both})")
             for j, other in enumerate(self.contacts[:i]):
-                if (set(_as_list(c.slave)) & set(_as_list(other.slave))
-                        and set(_as_list(c.master)) & set(_as_list(other.master))):
+                if (set(as_list(c.slave)) & set(as_list(other.slave))
+                        and set(as_list(c.master)) & set(as_list(other.master))):
                     raise SceneError(f"{key}: the same slave and master surfaces as "
                                      f"contacts[{j}] ({other.name!r}): the contact would be "
                                      "counted twice (with multipliers: a singular system)")
-                if (set(_as_list(c.slave)) & set(_as_list(other.master))
-                        and set(_as_list(c.master)) & set(_as_list(other.slave))):
+                if (set(as_list(c.slave)) & set(as_list(other.master))
+                        and set(as_list(c.master)) & set(as_list(other.slave))):
                     raise SceneError(f"{key}: the surfaces of contacts[{j}] ({other.name!r}) "
                                      "with slave and master swapped: the contact would be "
                                      "counted twice (with multipliers: a singular system)")
@@ -530,14 +530,14 @@ class Scene:
         facets: set[str] = set()
         for item in (*self.dirichlet, *self.pressures, *self.tractions):
             if item.boundary is not None:
-                facets.update(_as_list(item.boundary))
+                facets.update(as_list(item.boundary))
         for c in self.contacts:
-            facets.update(_as_list(c.slave))
-            facets.update(_as_list(c.master))
+            facets.update(as_list(c.slave))
+            facets.update(as_list(c.master))
         return cells, facets
 
 
-def _as_list(v: str | list[str]) -> list[str]:
+def as_list(v: str | list[str]) -> list[str]:
     return [v] if isinstance(v, str) else list(v)
 
 
@@ -586,7 +586,7 @@ def _check_group(name: str, key: str) -> None:
 def _check_groups(groups: str | list[str], key: str) -> None:
     """One group or a non-empty list of distinct groups: an empty list would drop the
     load or support, a repeated group would apply it twice."""
-    names = _as_list(groups)
+    names = as_list(groups)
     if not names:
         raise SceneError(f"{key} = []: name at least one physical group")
     for n in names:
