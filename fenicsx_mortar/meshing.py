@@ -9,6 +9,7 @@ import numpy as np
 from mpi4py import MPI
 
 from . import _dolfinx as dx
+from . import mshfile
 from .parallel import wait_for_all
 from .scene import LIMITS, Scene, SceneError, as_list
 
@@ -53,13 +54,19 @@ def _build_model(scene: Scene):
                              f"{e}") from None
     else:
         path = scene.mesh_file()
-        if not path.is_file():
-            raise SceneError(f"mesh.file: {path} does not exist")
-        _check_names(path)
         try:
-            gmsh.open(str(path))
-        except Exception as e:  # gmsh raises bare Exception on unreadable files
-            raise SceneError(f"mesh.file: {path} is not a readable gmsh mesh ({e})") from None
+            data = mshfile.read(path)
+        except mshfile.MeshFileError as e:
+            raise SceneError(str(e)) from None
+        _check_names(data, path)
+        with mshfile.open_for_gmsh(data) as name:
+            try:
+                gmsh.open(name)
+            except Exception as e:  # gmsh raises bare Exception on unreadable files
+                raise SceneError(f"mesh.file: {path} is not a readable gmsh mesh "
+                                 f"({str(e).replace(name, path.name)})") from None
+        del data
+        _renumber_nodes(gmsh.model)
         if gmsh.model.getDimension() == 3:
             raise SceneError(f"mesh.file: {path} is a {gmsh.model.getDimension()}D mesh; "
                              "fenicsx_mortar is 2D (plane strain)")
@@ -96,42 +103,40 @@ def _warn_nameless(scene: Scene, groups: dict[int, dict[str, int]]) -> None:
                           stacklevel=2)
 
 
-def _check_names(path) -> None:
+def _check_names(data: bytes, path) -> None:
     """No physical name on two curve or two surface groups: gmsh keeps it on one and leaves
     the others nameless, so a scene naming it would get part of the group (a support on half
     its boundary, exit 0). Reads the $PhysicalNames section, which is text in every format
-    and comes before the nodes (lines read with a length limit; the scan stops at the first
-    other section)."""
+    and comes before the nodes (the scan stops at the first other section)."""
     import re
     header = {b"$MeshFormat", b"$EndMeshFormat", b"$PhysicalNames", b"$Comments",
               b"$EndComments"}
     seen: dict[tuple[int, bytes], int] = {}
     inside = False
-    try:
-        with open(path, "rb") as f:
-            for raw in iter(lambda: f.readline(4096), b""):
-                line = raw.strip()
-                if line == b"$EndPhysicalNames":
-                    return
-                if line.startswith(b"$") and line not in header:
-                    return
-                if line == b"$PhysicalNames":
-                    inside = True
-                    continue
-                m = re.fullmatch(rb'(\d+)\s+(\d+)\s+"(.*)"', line) if inside else None
-                if m is None or int(m[1]) not in (1, 2):
-                    continue
-                key, tag = (int(m[1]), m[3]), int(m[2])
-                if seen.setdefault(key, tag) != tag:
-                    name = key[1].decode("utf-8", "replace")
-                    kind = "curve" if key[0] == 1 else "surface"
-                    raise SceneError(
-                        f"mesh.file: {path}: the physical name {name!r} is on two {kind} "
-                        f"groups (tags {seen[key]} and {tag}): gmsh keeps it on one only, "
-                        "and a scene naming it would get part of what it means; merge "
-                        "them into one group or rename one")
-    except OSError:
-        return  # gmsh reports the unreadable file
+    start = 0
+    while start < len(data):
+        end = data.find(b"\n", start, start + 4096)
+        end = min(len(data), start + 4096) if end < 0 else end + 1
+        line, start = data[start:end].strip(), end
+        if line == b"$EndPhysicalNames":
+            return
+        if line.startswith(b"$") and line not in header:
+            return
+        if line == b"$PhysicalNames":
+            inside = True
+            continue
+        m = re.fullmatch(rb'(\d+)\s+(\d+)\s+"(.*)"', line) if inside else None
+        if m is None or int(m[1]) not in (1, 2):
+            continue
+        key, tag = (int(m[1]), m[3]), int(m[2])
+        if seen.setdefault(key, tag) != tag:
+            name = key[1].decode("utf-8", "replace")
+            kind = "curve" if key[0] == 1 else "surface"
+            raise SceneError(
+                f"mesh.file: {path}: the physical name {name!r} is on two {kind} "
+                f"groups (tags {seen[key]} and {tag}): gmsh keeps it on one only, "
+                "and a scene naming it would get part of what it means; merge "
+                "them into one group or rename one")
 
 
 #: gmsh element types of the linear cells DOLFINx 0.5 reads here: triangle 3, quadrangle 4
@@ -168,11 +173,30 @@ def _check_cells(model, where: str) -> None:
                                  f"({owner[entity]!r} and {name!r}): its cells would count "
                                  "twice")
             owner[entity] = name
+    loose = [e for _, e in model.getEntities(2) if e not in owner]
+    n_loose = sum(len(t) for e in loose for t in model.mesh.getElements(2, e)[1])
+    if n_loose:
+        first = next(e for e in loose if any(len(t) for t in model.mesh.getElements(2, e)[1]))
+        nodes = model.mesh.getElements(2, first)[2][0][:3]
+        c = np.mean([model.mesh.getNode(int(n))[0][:2] for n in nodes], axis=0)
+        raise SceneError(f"{where}: {n_loose} cell(s) in no physical surface group (the first "
+                         f"near ({c[0]:.6g}, {c[1]:.6g}), surface {first}): every cell must "
+                         "belong to a body's group; add them to one, or remove them (gmsh's "
+                         "Mesh.SaveAll writes cells outside the groups)")
     cells = cells.reshape(-1, n_nodes).astype(np.int64)
     x = _node_coordinates(model)
     _check_areas(x, cells, where)
     _check_duplicates(x, cells, where)
     _check_curves(model, x, cells, where)
+
+
+def _renumber_nodes(model) -> None:
+    """Node tags 1..N, as DOLFINx's gmsh reader takes them (it asserts so, and the checks
+    here index by tag): a valid file may number its nodes from anywhere (1e9 gave "Unable
+    to allocate 14.9 GiB"). Meshes numbered 1..N already are left as they are."""
+    tags = model.mesh.getNodes()[0]
+    if len(tags) and not (int(tags.min()) == 1 and int(tags.max()) == len(tags)):
+        model.mesh.renumberNodes()
 
 
 def _node_coordinates(model) -> np.ndarray:
@@ -274,10 +298,11 @@ def _gmsh_initialize(gmsh) -> None:
     """gmsh.initialize keeping our SIGINT handler: gmsh >= 4.11 resets SIGINT to the default
     (an interrupt while meshing would kill the process without a word)."""
     import inspect
+    # no ~/.gmshrc or ~/.gmsh-options: they are scripts too, and not the scene's
     if "interruptible" in inspect.signature(gmsh.initialize).parameters:
-        gmsh.initialize(interruptible=False)
+        gmsh.initialize(readConfigFiles=False, interruptible=False)
     else:
-        gmsh.initialize()
+        gmsh.initialize(readConfigFiles=False)
 
 
 def build_domain(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD) -> Domain:

@@ -602,16 +602,13 @@ def _place(place) -> str:
 
 
 def _check_mesh_file(path: Path) -> None:
-    """A mesh file must be a regular file: gmsh would block on a FIFO and read a device
-    forever."""
+    """A mesh file must be gmsh MSH data (:mod:`.mshfile`): a script would be run by gmsh,
+    a FIFO block it, a device be read forever."""
+    from . import mshfile
     try:
-        mode = path.stat().st_mode
-    except OSError:
-        raise SceneError(f"mesh.file: {path} does not exist") from None
-    if stat.S_ISDIR(mode):
-        raise SceneError(f"mesh.file: {path} is a directory, not a gmsh mesh file")
-    if not stat.S_ISREG(mode):
-        raise SceneError(f"mesh.file: {path} is not a regular file (a device, FIFO or socket)")
+        mshfile.check(path)
+    except mshfile.MeshFileError as e:
+        raise SceneError(str(e)) from None
 
 
 def _check_generator(ms: MeshSource) -> None:

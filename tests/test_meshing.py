@@ -42,7 +42,7 @@ def _msh(tmp_path, names):
 def test_one_name_on_two_curve_groups_is_refused(tmp_path):
     path = _msh(tmp_path, ['1 2 "bottom"', '1 7 "bottom"', '2 1 "block"'])
     with pytest.raises(SceneError, match=r"'bottom' is on two curve groups \(tags 2 and 7\)"):
-        _check_names(path)
+        _check_names(path.read_bytes(), path)
 
 
 @pytest.mark.parametrize("names", [
@@ -51,4 +51,5 @@ def test_one_name_on_two_curve_groups_is_refused(tmp_path):
     ['1 2 "caf\xe9"', '1 3 "caf\xe8"', '2 1 "b"'],       # names that differ in one byte
 ])
 def test_names_that_gmsh_keeps_pass(tmp_path, names):
-    _check_names(_msh(tmp_path, names))
+    path = _msh(tmp_path, names)
+    _check_names(path.read_bytes(), path)

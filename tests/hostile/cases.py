@@ -754,6 +754,82 @@ add(
                 else "no warning of the nameless group"),
 )
 
+# -- mesh files are data, never programs (issue 28) -----------------------------------------
+def _script(rel: str, body: str):
+    """prepare: D/rel holds gmsh script text; ``{dir}`` in it is D (a command would write
+    D/pwned there)."""
+    def step(d: Path, donors) -> None:
+        (d / rel).write_text(body.format(dir=d))
+    return step
+
+
+def _sparse(rel: str, size: int):
+    """prepare: D/rel is a sparse file of ``size`` zero bytes (no disk used)."""
+    def step(d: Path, donors) -> None:
+        with open(d / rel, "wb") as f:
+            f.truncate(size)
+    return step
+
+
+def no_command_ran(d: Path, out: str, err: str) -> str:
+    return "a command of the mesh file ran (D/pwned exists)" if (d / "pwned").exists() else ""
+
+
+TOUCH = 'System "touch {dir}/pwned";\n'
+
+
+def script_case(id: str, rel: str, body: str, key: str, expect: int = 2,
+                stage: str = "scene", **kw) -> Case:
+    """SQUARE whose mesh.file is ``rel``, written by :func:`_script`."""
+    scene = square()[0] | {"mesh": {"file": rel}}
+    files = {"square.msh": MESHES / "square.msh"}
+    return Case(id, expect, key, scene, files=files, prepare=_script(rel, body),
+                check=no_command_ran, stage=stage, hazard="unchecked", **kw)
+
+
+add(
+    # gmsh read anything that is not MSH as a script: a shell command ran, Exit; ended the
+    # process with exit 0 and no message
+    script_case("mesh_script_system", "mesh.msh", TOUCH, "$MeshFormat"),
+    script_case("mesh_script_exit", "mesh.msh", "Exit;\n", "$MeshFormat"),
+    script_case("mesh_geo_script", "mesh.geo", TOUCH, "gmsh script"),
+    script_case("mesh_geo_unrolled", "mesh.geo_unrolled", TOUCH, "gmsh script"),
+    script_case("mesh_opt_as_mesh", "mesh.opt", TOUCH, "gmsh script"),
+    script_case("mesh_other_suffix", "mesh.txt", TOUCH, "not a .msh file"),
+    script_case("mesh_no_suffix", "mesh", TOUCH, "not a .msh file"),
+    # the header must be the first line: gmsh sent a blank first line to the script parser
+    script_case("mesh_blank_before_header", "mesh.msh", "\n$MeshFormat\n4.1 0 8\n" + TOUCH,
+                "$MeshFormat"),
+    script_case("mesh_old_format", "mesh.msh", "$NOD\n1\n1 0 0 0\n$ENDNOD\n" + TOUCH,
+                "$MeshFormat"),
+    script_case("mesh_version_3", "mesh.msh", "$MeshFormat\n3.0 0 8\n$EndMeshFormat\n",
+                "version 3"),
+    # a valid header and script lines after it: read as MSH (the lines are skipped), no cells
+    script_case("mesh_header_then_script", "mesh.msh",
+                "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n" + TOUCH, "no 2D cells",
+                stage="mesh"),
+    # gmsh ran <file>.opt beside any file it opened: the run is fine, the script never runs
+    Case("mesh_opt_beside_mesh", 0, "done", square()[0], files=square()[1],
+         prepare=_script("square.msh.opt", TOUCH), check=no_command_ran, stage="run"),
+    Case("mesh_check_command_script", 2, "$MeshFormat", square()[0] | {"mesh": {"file": "m.msh"}},
+         argv=("check", "{scene}"), prepare=_script("m.msh", "Exit;\n"),
+         check=no_command_ran),
+    # 1 GiB of zeros was read for minutes and ignored SIGTERM
+    Case("mesh_huge_zeros", 2, "MiB", square()[0] | {"mesh": {"file": "zeros.msh"}},
+         prepare=_sparse("zeros.msh", 1 << 30), hazard="unchecked"),
+    Case("mesh_small_zeros", 2, "$MeshFormat", square()[0] | {"mesh": {"file": "zeros.msh"}},
+         prepare=_sparse("zeros.msh", 1 << 16), hazard="unchecked"),
+    # cells in no physical group (gmsh's Mesh.SaveAll): DOLFINx aborted (SIGABRT)
+    mesh_case("mesh_cells_outside_groups", "no physical surface group", "save_all.msh"),
+    # nodes numbered from 1e9: "Unable to allocate 14.9 GiB"; now renumbered
+    square_case("mesh_numbered_from_1e9", 0, "done", mesh="numbered_from_1e9.msh",
+                stage="run"),
+    script_case("mpi_mesh_script_exit", "mesh.msh", "Exit;\n", "$MeshFormat",
+                mode="mpi", ranks=2),
+    script_case("mpi_mesh_opt_as_mesh", "mesh.opt", TOUCH, "gmsh script", mode="mpi",
+                ranks=2),
+)
+
 # -- physics guards -----------------------------------------------------------------------
 SVK = edit(BLOCK, ("bodies[0].material.model", "svk"), ("dirichlet", [
     {"boundary": "bottom", "y": 0.0}, {"boundary": "left", "x": 0.0}]),

@@ -108,6 +108,31 @@ def shared_curve():
     _groups({"block": [s]}, {**dict(zip(SIDES, ([x] for x in c))), "base": [c[0]]})
 
 
+def save_all():
+    """The unit square (group "block") and a second meshed square beside it in no physical
+    group, written with Mesh.SaveAll (DOLFINx aborted, SIGABRT)."""
+    s, c = _square(0.0, 1.0, 2, True)
+    _square(2.0, 1.0, 2, True)
+    _groups({"block": [s]}, dict(zip(SIDES, ([x] for x in c))))
+    gmsh.option.setNumber("Mesh.SaveAll", 1)
+
+
+def _offset_numbers(text: str, offset: int) -> str:
+    """An MSH 2.2 text with every node number shifted by ``offset``."""
+    out, section = [], None
+    for line in text.split("\n"):
+        parts = line.split()
+        if line.startswith("$"):
+            section = line
+        elif section == "$Nodes" and len(parts) == 4:
+            parts[0] = str(int(parts[0]) + offset)
+        elif section == "$Elements" and len(parts) > 3:
+            k = 3 + int(parts[2])
+            parts = parts[:k] + [str(int(q) + offset) for q in parts[k:]]
+        out.append(" ".join(parts) if parts and not line.startswith("$") else line)
+    return "\n".join(out)
+
+
 def main() -> None:
     HERE.mkdir(exist_ok=True)
     _write("square.msh", unit_square())
@@ -141,6 +166,19 @@ def main() -> None:
     (HERE / "garbage.msh").write_bytes(bytes(range(256)) * 8)
     text = (HERE / "square.msh").read_text()
     (HERE / "truncated.msh").write_text(text[: text.index("$Elements") + 40])
+    _write("save_all.msh", save_all)
+    # the unit square with its nodes numbered from 1e9 (a valid file: "Unable to allocate
+    # 14.9 GiB" before the renumbering)
+    gmsh.initialize()
+    gmsh.option.setNumber("General.Terminal", 0)
+    gmsh.option.setNumber("Mesh.MshFileVersion", 2.2)
+    gmsh.model.add("square22")
+    unit_square()()
+    gmsh.model.mesh.generate(2)
+    gmsh.write(str(HERE / "numbered_from_1e9.msh"))
+    gmsh.finalize()
+    path = HERE / "numbered_from_1e9.msh"
+    path.write_text(_offset_numbers(path.read_text(), 10**9))
 
 
 if __name__ == "__main__":
