@@ -144,7 +144,9 @@ def fingerprint(path: str, steps: int | None, comm) -> dict:
     def on_step(record, state):
         # before the library refactor the pairs were ``state.hooks`` with ``.pair.name``
         pairs = state.pairs if hasattr(state, "pairs") else state.hooks
-        nodal = plain({getattr(p, "pair", p).name: p.interface() for p in pairs})
+        # (the vertex numbers are labels, not results)
+        nodal = plain({getattr(p, "pair", p).name: {k: v for k, v in p.interface().items()
+                                                     if k != "vertex"} for p in pairs})
         if comm.size > 1 and len(set(comm.allgather(json.dumps(nodal)))) > 1:
             raise RuntimeError(f"{path}: interface arrays differ between ranks")
         fp["steps"].append({"record": plain(record), "nodal": nodal})

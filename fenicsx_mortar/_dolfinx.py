@@ -45,6 +45,13 @@ def vector_space(msh: Mesh):
     return api.functionspace(msh, ("Lagrange", 1, (2,)))
 
 
+def scalar_p1_space(V):
+    """The P1 scalar space of V's mesh and, for each of its local dofs, V's local unrolled
+    dof of the same node's x component (``V.sub(0).collapse()``)."""
+    W, parent = V.sub(0).collapse()
+    return W, np.asarray(parent, dtype=np.int64)
+
+
 def tensor_dg0_space(msh: Mesh):
     """Cellwise constant 2×2 tensors (the Cauchy stress output)."""
     return api.functionspace(msh, ("DG", 0, (2, 2)))
@@ -216,6 +223,12 @@ def vertex_to_geometry_node(msh: Mesh) -> np.ndarray:
     out = np.full(nv, -1, dtype=np.int32)
     out[c2v] = g  # same local ordering within each linear cell
     return out
+
+
+def global_vertices(msh: Mesh, vertices: np.ndarray) -> np.ndarray:
+    """Global (topology) numbers of local vertices."""
+    im = msh.topology.index_map(0)
+    return np.asarray(im.local_to_global(np.asarray(vertices, dtype=np.int32)), dtype=np.int64)
 
 
 def local_to_global_blocks(V) -> np.ndarray:

@@ -2,93 +2,261 @@
 
 The user brings what a DOLFINx script has — the displacement ``u`` (a P1 vector Function),
 the residual form F(u; v) (and optionally its Jacobian), the Dirichlet conditions — and
-the contact pairs (:class:`~fenicsx_mortar.contact.pair.ContactPair`, from facet meshtags).
-The problem solves F(u) + contact = 0 with PETSc SNES (``problem.snes``; options through
-``petsc_options`` or the options database under ``prefix``)::
+the contact pairs (:class:`~fenicsx_mortar.ContactPair`, from facet meshtags). The problem
+solves F(u) + contact = 0 with PETSc SNES, following DOLFINx's ``NonlinearProblem``
+conventions: options under a ``petsc_options_prefix`` the user chooses, ``.solver`` the
+SNES, ``close()`` (or ``with``) destroys the PETSc objects::
 
     pair = ContactPair(V, facet_tags, slave=3, master=4, E=1000.0)
-    problem = ContactProblem(F, u, bcs, [pair])
-    for load in loads:
-        traction.value = load
-        result = problem.solve()         # Newton (+ ALM augmentations) at this load
-        print(result.converged, pair.record())
+    with ContactProblem(F, u, bcs, [pair], petsc_options_prefix="hertz_") as problem:
+        for load in loads:
+            traction.value = load
+            result = problem.solve()      # Newton (+ ALM augmentations) at this load
+            print(result.converged, problem.reaction(facet_tags, BOTTOM))
 
-The scene runner (:func:`fenicsx_mortar.solve`) is a client of this class.
+Every solve ends in the acceptance check (acceptance.py): a state that is not a converged
+physical solution is never reported converged. :class:`~fenicsx_mortar.LoadStepper` adds
+load stepping with step cutting; the scene runner is a client of both.
 """
 from __future__ import annotations
 
-from typing import Callable, Sequence
+import warnings
+import weakref
+from typing import Callable, Mapping, Sequence
 
+import numpy as np
 import ufl
+from mpi4py import MPI
 
 from . import _dolfinx as dx
-from .contact.pair import ContactPair
-from .scene import SolverSettings
-from .solver import NewtonSolver, StepResult, Timings
+from . import petsc_options as po
+from .acceptance import Acceptance
+from .newton import NewtonSolver, StepResult
+from .settings import SolverSettings, check_number
+from .timings import Timings
 
 
 class ContactProblem:
-    def __init__(self, F, u, bcs: Sequence, pairs: Sequence[ContactPair], J=None, *,
-                 settings: SolverSettings | None = None, petsc_options: dict | None = None,
-                 prefix: str | None = None, timings: Timings | None = None,
-                 should_stop: Callable[[], str | None] = lambda: None):
-        """``F``, ``J``: UFL forms or compiled DOLFINx forms (J default: the Gateaux
-        derivative of F in the direction of a trial function of u's space). ``settings``:
-        Newton tolerances, line search, linear solver (:class:`~.scene.SolverSettings`);
-        ``petsc_options`` are added to its ``petsc`` dict (keys with or without '-')."""
+    """F(u) + contact = 0, solved by Newton's method (PETSc SNES) at the current loads.
+
+    Args:
+        F: The residual: a UFL form linear in a test function of u's space (or a compiled
+            DOLFINx form, then with ``J``).
+        u: The displacement, a Function in the P1 vector space of the mesh.
+        bcs: Dirichlet conditions (DOLFINx ``DirichletBC``).
+        pairs: The contact pairs (each used by one problem only).
+        J: The Jacobian form (default: the Gateaux derivative of F in the direction of a
+            trial function of u's space).
+        petsc_options_prefix: The SNES's options prefix: options in PETSc's database under
+            it (the command line's ``-<prefix>snes_monitor``) reach the solver. ``""``: no
+            prefix.
+        petsc_options: Options set under the prefix for the set-up (``{"snes_monitor":
+            None, "ksp_type": "preonly"}``; keys with or without '-'); an option PETSc does
+            not read is warned of.
+        settings: Newton tolerances, line search, linear solver
+            (:class:`~fenicsx_mortar.SolverSettings`; its ``petsc`` dict is applied before
+            ``petsc_options``).
+        acceptance: Run the physical checks of a converged state (passed-through nodes,
+            inverted cells, a flown-off body). The convergence rule always applies.
+        max_augmentations: Newton solves after the first per ``solve()`` (ALM updates).
+        cell_tags: Optional cell meshtags, to name bodies in messages.
+        body_names: Optional names of the cell tag values.
+        timings: Seconds by phase (a :class:`~fenicsx_mortar.timings.Timings`), added to.
+        should_stop: Called at every Newton iteration; a non-empty string (a signal's name)
+            stops the solve (collective: the same on every rank).
+
+    Raises:
+        ValueError: an argument that cannot work, named.
+    """
+
+    def __init__(self, F, u, bcs: Sequence = (), pairs: Sequence = (), J=None, *,
+                 petsc_options_prefix: str = "fenicsx_mortar_",
+                 petsc_options: Mapping[str, object] | None = None,
+                 settings: SolverSettings | None = None, acceptance: bool = True,
+                 max_augmentations: int = 30, cell_tags=None,
+                 body_names: Mapping[int, str] | None = None,
+                 timings: Timings | None = None,
+                 should_stop: Callable[[], str | None] | None = None):
         pairs = list(pairs)
-        if pairs and not dx.is_p1_vector_space(u.function_space):
-            raise ValueError("u: contact needs the displacement in the P1 vector space of the "
-                             "mesh (two dofs at every vertex)")
-        for k, p in enumerate(pairs):
-            if not dx.same_mesh(p.mesh, u.function_space.mesh):
-                raise ValueError(f"contact {p.name}: the pair was built on another mesh than "
-                                 "u's function space")
-            if any(q is p for q in pairs[:k]):
-                raise ValueError(f"contact {p.name}: the same pair is given twice")
+        _check_forms(F, J, u)
+        _check_pairs(pairs, u)
+        settings = (settings or SolverSettings()).check("settings")
+        check_number("max_augmentations", max_augmentations)
+        if not isinstance(petsc_options_prefix, str) or " " in petsc_options_prefix \
+                or petsc_options_prefix.startswith("-"):
+            raise ValueError(f"petsc_options_prefix = {petsc_options_prefix!r}: a string of "
+                             "letters, digits and '_' (PETSc's prefix, without '-')")
+        user = {**po.normalize(settings.petsc), **po.normalize(petsc_options)}
+        multipliers = any(p.unknowns for p in pairs)
+        po.check_solver_choice(settings, user, multipliers)
+        unread = po.unread(settings, user)
+        if unread:
+            warnings.warn(po.unread_message(unread), stacklevel=2)
         if J is None:
             J = ufl.derivative(F, u, ufl.TrialFunction(u.function_space))
         self.residual = F if not isinstance(F, ufl.Form) else dx.form(F)
         self.jacobian = J if not isinstance(J, ufl.Form) else dx.form(J)
-        settings = settings or SolverSettings()
-        if petsc_options:
-            settings.petsc = {**settings.petsc, **petsc_options}
-        self.u, self.bcs, self.pairs = u, list(bcs), list(pairs)
+        self.u, self.bcs, self.pairs = u, list(bcs), pairs
+        self.max_augmentations = int(max_augmentations)
         self.timings = timings if timings is not None else Timings()
         for p in self.pairs:
             p.timings = self.timings
+            p._problem = weakref.ref(self)
+        self._closed = False
         matrix = None
         if self.pairs:
             with self.timings("contact"):
                 blocks = [b for p in self.pairs for b in p.couplings()]
                 matrix = dx.matrix_with_couplings(self.jacobian, u.function_space, blocks)
-        self.solver = NewtonSolver(self.residual, self.jacobian, u, self.bcs, settings,
-                                   self.pairs, self.timings, matrix, should_stop, prefix)
+        #: the Newton driver (newton.py): SNES callbacks, convergence rule, state
+        self.newton = NewtonSolver(self.residual, self.jacobian, u, self.bcs, settings,
+                                   self.pairs, self.timings, matrix,
+                                   should_stop or (lambda: None), petsc_options_prefix,
+                                   po.normalize(petsc_options))
+        self.newton.accept = Acceptance(u, self.pairs, settings.quadrature_degree,
+                                        physical=acceptance, cell_tags=cell_tags,
+                                        body_names=body_names)
+
+    @property
+    def solver(self):
+        """The PETSc SNES (``newtonls``) that solves the problem (DOLFINx's name)."""
+        return self.newton.snes
 
     @property
     def snes(self):
-        """The PETSc SNES (newtonls) that solves the problem."""
-        return self.solver.snes
+        """The PETSc SNES (same as :attr:`solver`)."""
+        return self.newton.snes
 
-    def solve(self, max_augmentations: int = 30) -> StepResult:
+    def solve(self, max_augmentations: int | None = None) -> StepResult:
         """Newton solves at the current loads (one per augmentation) from the current u.
-        Converged: the pairs' step history is committed. Not converged: u and the history
-        are restored to where the solve started, and the result says why."""
-        self.solver.system.pull(self.solver.x)   # the user may have set u
-        saved = self.solver.save_state()
+
+        Converged (and accepted): the pairs' step history is committed. Not converged: u
+        and the history are put back where the solve started, and the result says why.
+
+        Args:
+            max_augmentations: Overrides the problem's for this solve.
+
+        Returns:
+            The :class:`~fenicsx_mortar.newton.StepResult` (``converged``, ``iterations``,
+            ``residuals``, ``augmentations``, ``reason``).
+        """
+        if self._closed:
+            raise ValueError("solve(): the problem was closed")
+        newton = self.newton
+        newton.system.pull(newton.x)   # the user may have set u
+        saved = newton.save_state()
         for p in self.pairs:
             p.begin_step()
-        res = self.solver.solve_step(max_augmentations)
+        res = newton.solve_step(self.max_augmentations if max_augmentations is None
+                                else max_augmentations)
         for p in self.pairs:
             if res.converged:
                 p.accept_step()
             else:
                 p.reject_step()
         if not res.converged:
-            self.solver.restore_state(saved)
+            newton.restore_state(saved)
+        saved.destroy()
         return res
 
     def reactions(self):
-        """F(u) with contact and without Dirichlet modification (a PETSc Vec): the
-        reaction forces on the constrained dofs."""
-        return self.solver.unconstrained_residual()
+        """F(u) with contact and without Dirichlet rows, a PETSc Vec in u's layout: at a
+        constrained dof, the force its support exerts on the body."""
+        return self.newton.unconstrained_residual()
+
+    def reaction(self, facet_tags, tag: int | Sequence[int]) -> np.ndarray:
+        """The force (x, y) that the supports on the tagged facets exert on the body: the
+        sum of F(u) (contact included, Dirichlet rows not replaced) over the dofs of those
+        facets, summed over the ranks (collective).
+
+        Args:
+            facet_tags: Facet meshtags of u's mesh.
+            tag: The tag value(s) of the boundary.
+
+        Returns:
+            ``np.array([R_x, R_y])``; on a free boundary at equilibrium it is the external
+            load there (zero if none).
+        """
+        V = self.u.function_space
+        tdim = dx.topological_dimension(V.mesh)
+        if getattr(facet_tags, "dim", tdim - 1) != tdim - 1:
+            raise ValueError(f"facet_tags: meshtags of dimension {facet_tags.dim}; the "
+                             f"facets are of dimension {tdim - 1}")
+        facets = facet_tags.indices[np.isin(facet_tags.values, np.atleast_1d(tag))]
+        comm = V.mesh.comm
+        if comm.allreduce(len(facets), op=MPI.SUM) == 0:
+            raise ValueError(f"reaction: no facet has the tag {tag!r}")
+        b = self.reactions()
+        n_owned = dx.owned_dof_count(V)
+        arr = b.array_r
+        out = np.zeros(2)
+        for k in range(2):
+            d = dx.facet_dofs(V, k, facets)
+            out[k] = arr[d[d < n_owned]].sum()
+        b.destroy()
+        return comm.allreduce(out, op=MPI.SUM)
+
+    def close(self) -> None:
+        """Destroy the PETSc objects (SNES, matrix, vectors) now; the pairs are free for
+        another problem."""
+        if not self._closed:
+            self._closed = True
+            self.newton.close()
+            for p in self.pairs:
+                p._problem = None
+
+    def __enter__(self) -> ContactProblem:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def _check_forms(F, J, u) -> None:
+    """F (and J) forms of u: a UFL form must be linear in one test function of u's space
+    and contain u; a compiled form comes with its compiled Jacobian."""
+    if not isinstance(u, dx.Function):
+        raise ValueError(f"u: a DOLFINx Function (the displacement), not {type(u).__name__}")
+    if isinstance(F, ufl.Form):
+        args = F.arguments()
+        if len(args) != 1:
+            raise ValueError(f"F: a residual form has one argument (a TestFunction); this "
+                             f"one has {len(args)}")
+        if u not in F.coefficients():
+            raise ValueError("F does not depend on u: the residual must be written in terms "
+                             "of the u passed (a form of another Function would never "
+                             "change with the solution)")
+        if J is not None and (not isinstance(J, ufl.Form) or len(J.arguments()) != 2):
+            raise ValueError("J: a bilinear UFL form (test and trial function), or omit it "
+                             "for dF/du")
+        return
+    if not hasattr(F, "function_spaces"):
+        raise ValueError(f"F: a UFL form or a compiled DOLFINx form, not {type(F).__name__}")
+    if J is None:
+        raise ValueError("F is a compiled form: pass its compiled Jacobian J too (or pass "
+                         "the UFL form, and J is derived)")
+
+
+def _check_pairs(pairs: list, u) -> None:
+    if pairs and not dx.is_p1_vector_space(u.function_space):
+        raise ValueError("u: contact needs the displacement in the P1 vector space of the "
+                         "mesh (two dofs at every vertex)")
+    names = {}
+    for k, p in enumerate(pairs):
+        if not hasattr(p, "couplings"):
+            raise ValueError(f"pairs[{k}]: a ContactPair, not {type(p).__name__}")
+        if not dx.same_mesh(p.mesh, u.function_space.mesh):
+            raise ValueError(f"contact {p.name}: the pair was built on another mesh than "
+                             "u's function space")
+        if any(q is p for q in pairs[:k]):
+            raise ValueError(f"contact {p.name}: the same pair is given twice")
+        if p.name in names:
+            raise ValueError(f"contact {p.name}: pairs[{names[p.name]}] and pairs[{k}] have "
+                             "the same name (records and files are by name): give each its "
+                             "own name=")
+        names[p.name] = k
+        owner = p._problem() if p._problem is not None else None
+        if owner is not None and not owner._closed:
+            raise ValueError(f"contact {p.name}: the pair belongs to another ContactProblem "
+                             "(a pair carries its problem's state): build a new ContactPair, "
+                             "or close() the other problem first")

@@ -3,12 +3,13 @@
 The scene runner is a client of the library API: it builds the UFL forms of the scene's
 bodies and loads (:mod:`.bulk`), one :class:`~.contact.pair.ContactPair` per declared pair
 from the mesh's named groups, and drives a :class:`~.problem.ContactProblem` through the
-load steps with step cutting (:func:`.solver.run_load_steps`), writing the outputs.
+load steps with a :class:`~.stepping.LoadStepper`, writing the outputs.
 """
 from __future__ import annotations
 
 import contextlib
 import dataclasses
+import itertools
 import json
 import os
 import signal
@@ -28,7 +29,9 @@ from .bulk import Bulk, StressOutput, build_bulk
 from .meshing import Domain, build_domain
 from .parallel import BrokenOutput, RankOSError, RunError, agree, on_rank0
 from .scene import Scene, SceneError
-from .solver import StepResult, Timings, run_load_steps
+from .newton import StepResult
+from .stepping import Cut, Event, LoadStepper, Retried, StepDone, StepStarted
+from .timings import Timings
 
 T = TypeVar("T")
 
@@ -53,6 +56,8 @@ class Result:
 
 
 _PHASE = ["reading the scene"]
+#: the runs' own PETSc options prefixes
+_PREFIXES = itertools.count()
 
 
 def phase() -> str:
@@ -127,11 +132,16 @@ def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM
     stop = _StopRequest(comm)
     with timings("jit"), _jit_cache_kept_whole():
         from .problem import ContactProblem
-        problem = ContactProblem(bulk.residual, bulk.u, bulk.bcs, pairs, bulk.jacobian,
-                                 settings=scene.solver, timings=timings,
-                                 should_stop=stop.requested)
-        solver = problem.solver
-        solver.check_solution = guards.StepGuard(scene, bulk, solver)
+        # a prefix of its own: no option of the environment reaches the scene's solver
+        problem = ContactProblem(
+            bulk.residual, bulk.u, bulk.bcs, pairs, bulk.jacobian,
+            petsc_options_prefix=f"fm{next(_PREFIXES)}_", settings=scene.solver,
+            max_augmentations=max((c.enforcement.max_augmentations for c in scene.contacts),
+                                  default=0),
+            cell_tags=dom.cell_tags,
+            body_names={dom.cell_groups[b.group]: b.name for b in scene.bodies},
+            timings=timings, should_stop=stop.requested)
+        solver = problem.newton
     ndofs = dx.dof_count(bulk.V)
     log(f"  dofs: {ndofs}, ranks: {comm.size}")
 
@@ -158,7 +168,8 @@ def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM
                 _xdmf(out, kept, lambda: writer.write([bulk.u, stress.sigma], t0))
     warned: set[str] = set()
 
-    def record_step(k: int, t: float, res: StepResult, cuts: int) -> None:
+    def record_step(done: StepDone) -> None:
+        k, t, res, cuts = done.step, done.time, done.result, done.cuts
         b = solver.unconstrained_residual()
         record = {"step": k, "time": t, "load_factor": t, "newton_iterations": res.iterations,
                   "augmentations": res.augmentations, "cuts": cuts,
@@ -192,21 +203,28 @@ def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM
 
     live = _progress_printer() if rank0 else (lambda s: None)
 
-    def progress(s: str) -> None:
+    def progress(e: Event) -> None:
         # why an increment failed belongs in the log (a batch run's only record of it);
-        # "step k t=… ..." is a live status line only
-        if s.startswith(("cut:", "retrying", "MUMPS")):
-            log(f"  {s}")
-        else:
-            live(s)
+        # the attempt is a live status line only
+        if isinstance(e, StepStarted):
+            live(f"step {e.step} t={e.time:.6g} ...")
+        elif isinstance(e, Cut):
+            log(f"  cut: {e.reason}; retrying with increment {e.increment:.3g}")
+        elif isinstance(e, Retried) and e.how == "workspace":
+            log(f"  MUMPS workspace too small: retrying with ICNTL(14) = {e.value}")
+        elif isinstance(e, Retried):
+            log(f"  retrying with {e.how}: {e.reason}")
     _enter("in the load steps")
     try:
         with stop:
-            completed, message = run_load_steps(
-                solver, scene.steps, bulk.set_time, record_step, progress,
-                max(c.enforcement.max_augmentations for c in scene.contacts)
-                if scene.contacts else 0,
-                t_start=t0, k_start=k0, should_stop=stop.requested)
+            stepper = LoadStepper(problem, bulk.set_time, scene.steps.targets(),
+                                  max_cuts=scene.steps.max_cuts,
+                                  min_increment=scene.steps.floor(), on_step=record_step,
+                                  on_event=progress, start=(k0, t0))
+            ended = stepper.run()
+        completed, message = ended.completed, ended.message
+        if message.startswith("interrupted"):
+            message += "; continue with: fenicsx-mortar run --restart DIR"
     except RunError as e:
         # no "FAILED" log line: the caller says it (the CLI: one line on stderr); under Open
         # MPI 5 a stdout line written just before it was seen merged into mpirun's stderr
@@ -303,7 +321,8 @@ def scene_pairs(scene: Scene, dom: Domain, V) -> list:
                 V, dom.facet_tags, tags(c.slave), tags(c.master), name=c.name,
                 method=c.method, smoothing=c.smoothing, enforcement=c.enforcement.type,
                 epsilon=c.enforcement.epsilon, tolerance=c.enforcement.tolerance,
-                friction=c.friction.law, mu=c.friction.mu, E=moduli,
+                friction=c.friction.law,
+                mu=c.friction.mu if c.friction.law != "none" else None, E=moduli,
                 cell_tags=dom.cell_tags, n_gauss=c.n_gauss, search_radius=c.search_radius,
                 basis=c.basis, slave_smoothing=c.slave_smoothing))
         except ValueError as e:

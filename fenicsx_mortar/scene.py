@@ -17,6 +17,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal, Union
 
+from .settings import SolverSettings
+
 #: upper bounds of the numbers that drive memory or time (docs/scenes.md): cells of a
 #: generated mesh (estimated before meshing) or of a mesh file, load steps, cuts in a row,
 #: Gauss points per mortar segment, bulk quadrature degree, Newton iterations per solve,
@@ -210,20 +212,6 @@ class Steps:
             return list(self.times)
         n = self.count or 1
         return [self.end * (k + 1) / n for k in range(n)]
-
-
-@dataclass
-class SolverSettings:
-    """Newton (PETSc SNES) settings. A step converges when the residual norm is below
-    ``atol`` and below ``rtol`` times the first residual of the step (and, with contact,
-    the KKT residual is below the pair's tolerance)."""
-    atol: float = 1e-9
-    rtol: float = 1e-8
-    max_iterations: int = 25
-    line_search: Literal["basic", "bt", "l2", "cp", "l2-full"] = "l2-full"
-    linear_solver: Literal["mumps", "superlu_dist", "gmres-hypre"] = "mumps"
-    quadrature_degree: int = 2  # bulk forms: full Gauss integration of P1/Q1 (2x2 on quads)
-    petsc: dict[str, bool | int | float | str] = field(default_factory=dict)
 
 
 @dataclass

@@ -62,6 +62,10 @@ class DisplacementSystem:
         """A vector in DOLFINx's layout, for F(u) without Dirichlet rows (reactions)."""
         return self.b.duplicate()
 
+    def owned_objects(self) -> list:
+        """PETSc objects of the system besides A, b and x (destroyed with the solver)."""
+        return []
+
 
 class MultiplierSystem(DisplacementSystem):
     def __init__(self, residual, jacobian, u, bcs, pairs, matrix):
@@ -209,3 +213,6 @@ class MultiplierSystem(DisplacementSystem):
 
     def unconstrained(self):
         return self.b_u.duplicate()
+
+    def owned_objects(self) -> list:
+        return [self.b_u, self._lgmap]

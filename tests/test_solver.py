@@ -1,4 +1,5 @@
-"""Newton driver (fenicsx_mortar.solver): the retry with full Newton steps."""
+"""The Newton driver (newton.py), load stepping (stepping.py) and the acceptance of a
+converged state (acceptance.py)."""
 from __future__ import annotations
 
 import pytest
@@ -77,10 +78,10 @@ def test_out_of_workspace_grows_it_instead_of_cutting(monkeypatch):
         scene.solver.petsc = petsc
         return solve(scene, log=lambda s: None)
 
-    from fenicsx_mortar import solver
+    from fenicsx_mortar import newton
     grown = []
-    grow = solver.NewtonSolver.grow_workspace
-    monkeypatch.setattr(solver.NewtonSolver, "grow_workspace",
+    grow = newton.NewtonSolver.grow_workspace
+    monkeypatch.setattr(newton.NewtonSolver, "grow_workspace",
                         lambda self: grown.append(grow(self)) or grown[-1])
     plain, starved = run({}), run({"-mat_mumps_icntl_14": -5})
     assert grown == [20]                    # one retry, from -5 to MUMPS's default margin
@@ -119,14 +120,14 @@ def test_a_displacement_far_beyond_the_mesh_is_not_a_solution():
     (the follower load on a collapsed edge), which was accepted. The step guard refuses a
     displacement of more than FLOWN_OFF mesh diameters, and only that."""
     from fenicsx_mortar import load_scene
+    from fenicsx_mortar.acceptance import FLOWN_OFF, Acceptance
     from fenicsx_mortar.bulk import build_bulk
-    from fenicsx_mortar.guards import FLOWN_OFF, StepGuard
     from fenicsx_mortar.meshing import build_domain
     from conftest import ROOT
 
     scene = load_scene(ROOT / "tests/bad_input/_base.toml")
     bulk = build_bulk(scene, build_domain(scene))
-    guard = StepGuard(scene, bulk, solver=None)
+    guard = Acceptance(bulk.u)
     assert guard.size > 0
     bulk.u.x.array[:] = 0.5 * FLOWN_OFF * guard.size
     assert guard.flown_off() is None
@@ -142,8 +143,8 @@ def test_a_cell_inverted_only_at_a_corner_is_not_a_solution(a, inverted):
     two elements); J at the corners is the exact test (J is affine in ξ and η)."""
     import numpy as np
     from fenicsx_mortar import load_scene
+    from fenicsx_mortar.acceptance import Acceptance
     from fenicsx_mortar.bulk import build_bulk
-    from fenicsx_mortar.guards import StepGuard
     from fenicsx_mortar.meshing import build_domain
     from conftest import ROOT
 
@@ -155,7 +156,9 @@ def test_a_cell_inverted_only_at_a_corner_is_not_a_solution(a, inverted):
     scene.bodies[0].name = "block"
     bulk = build_bulk(scene.validate(), build_domain(scene))
     bulk.u.interpolate(lambda x: np.vstack([(a - 1.0) * x[0] * x[1]] * 2))
-    guard = StepGuard(scene, bulk, solver=None)
+    dom = bulk.domain
+    guard = Acceptance(bulk.u, cell_tags=dom.cell_tags,
+                       body_names={dom.cell_groups["block"]: "block"})
     why = guard.inverted()
     assert (why is not None) == inverted
     if inverted:

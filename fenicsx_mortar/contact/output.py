@@ -11,12 +11,14 @@ from ..output import write_atomic
 
 
 def interface_table(pair) -> dict[str, np.ndarray]:
-    """Per slave node: arc length s, current x, y, average gap g̃/A (nan where the node sees
-    no master), pressure, active (0/1), and the friction law's columns."""
+    """Per slave node: its global vertex number, arc length s, current x, y, average gap
+    g̃/A (nan where the node sees no master), pressure (per unit current length), active
+    (0/1), and the friction law's columns."""
     st = pair.state
     xs, A = st.xs, st.A
     gap = np.where(A > 0, st.g / np.where(A > 0, A, 1.0), np.nan)
-    d = dict(s=pair.slave.arc_length(xs), x=xs[:, 0], y=xs[:, 1], gap=gap,
+    d = dict(vertex=pair.slave.vertices, s=pair.slave.arc_length(xs), x=xs[:, 0],
+             y=xs[:, 1], gap=gap,
              pressure=st.p, active=(st.p > 0).astype(int))
     d.update(pair.friction.interface(st))
     return d

@@ -20,9 +20,10 @@ from mpi4py import MPI
 from scipy.spatial import cKDTree
 
 from .. import _dolfinx as dx
+from ..settings import check_number
 from . import assembly, boundary, crossing
 from .curves import make_curve
-from .registry import ENFORCEMENTS, FRICTION_LAWS, METHODS
+from .registry import ENFORCEMENTS, FRICTION_LAWS, METHODS, SMOOTHINGS
 from .search import candidate_pairs, search_once
 from .state import ContactState
 from .surface import Surface, build_surface
@@ -31,33 +32,77 @@ from .surface import Surface, build_surface
 class ContactPair:
     """A slave (non-mortar) and a master (mortar) boundary that may touch.
 
-    Built from what a DOLFINx user has: the P1 vector displacement space ``V``, facet
-    meshtags and the tag value(s) of the ``slave`` and ``master`` boundaries; ``method``,
-    ``smoothing``, ``enforcement`` (type) and ``friction`` (law) are registry names
-    (``METHODS.names()`` …). ``E``: Young's modulus of the slave body, for the default
-    ε = E/h (h the mean slave segment length: a pressure per gap of a surface layer one
-    element deep); or a mapping cell tag → E of every body, with ``cell_tags``: the pair
-    then also warns when the slave is the stiffer body with the finer segments. With
-    ``cell_tags`` each surface must bound cells of one tag (one body). ``basis``: the
-    multiplier basis of the weighted gaps ("dual" or "standard"; default dual with
-    multipliers); ``slave_smoothing``: "hermite" measures the gap from the slave's own
-    smoothed curve too (two-sided smoothing, mortar only; docs/smoothing.md)."""
+    Built from what a DOLFINx user has: the P1 vector displacement space, facet meshtags
+    and the tag value(s) of the two boundaries. The slave carries the multipliers: make it
+    the softer body, or the finer mesh.
+
+    Args:
+        V: The displacement space: P1 vector Lagrange on a 2D mesh.
+        facet_tags: Facet meshtags of V's mesh.
+        slave: Tag value(s) of the slave boundary.
+        master: Tag value(s) of the master boundary (another body's).
+        name: The pair's name in records, files and field names (unique per problem).
+        method: ``"mortar"`` or ``"nts"`` (``registry.METHODS``).
+        smoothing: The master curve: ``"none"``, ``"averaged-simple"``,
+            ``"averaged-weighted"``, ``"averaged-tangent"``, ``"hermite"``, ``"bspline"``.
+        enforcement: ``"lagrange"`` (multipliers, semi-smooth Newton), ``"penalty"`` or
+            ``"alm"`` (Uzawa augmented Lagrangian).
+        epsilon: The penalty ε (a pressure per unit gap; default E/h, h the mean slave
+            segment length); with ``lagrange`` it only steers the active set.
+        tolerance: The ALM's KKT tolerance, relative to the pressure scale.
+        friction: ``"none"`` or ``"coulomb"`` (``registry.FRICTION_LAWS``).
+        mu: The friction coefficient: required with ``"coulomb"``, refused without.
+        E: Young's modulus of the slave body (for the default ε), or a mapping cell tag →
+            E of every body with ``cell_tags`` (then the pair also warns when a stiffer
+            slave with finer segments would over-constrain a soft master).
+        cell_tags: Optional cell meshtags: each surface must bound the cells of one tag.
+        n_gauss: Gauss points per mortar segment (default 2 on the polyline, 4 on smoothed
+            curves).
+        search_radius: Contact search distance (default twice each slave segment's length).
+        basis: The weight of the weighted gaps, ``"dual"`` (default with multipliers) or
+            ``"standard"``.
+        slave_smoothing: ``"hermite"`` measures the gap from the slave's own smoothed curve
+            too (two-sided smoothing, mortar only; docs/smoothing.md).
+
+    Raises:
+        ValueError: an argument out of its range or not among its choices, named.
+    """
 
     def __init__(self, V, facet_tags, slave: int | Sequence[int], master: int | Sequence[int],
                  *, name: str = "contact", method: str = "mortar", smoothing: str = "none",
                  enforcement: str = "lagrange", epsilon: float | None = None,
-                 tolerance: float = 1e-10, friction: str = "none", mu: float = 0.0,
+                 tolerance: float = 1e-10, friction: str = "none", mu: float | None = None,
                  E: float | Mapping[int, float] | None = None, cell_tags=None,
                  n_gauss: int | None = None, search_radius: float | None = None,
                  basis: str | None = None, slave_smoothing: str = "none"):
         self.name = name
+        _check_arguments(name, slave=slave, master=master, method=method,
+                         smoothing=smoothing, enforcement=enforcement, friction=friction,
+                         basis=basis, slave_smoothing=slave_smoothing)
         _check_numbers(name, epsilon=epsilon, tolerance=tolerance, mu=mu, E=E,
                        n_gauss=n_gauss, search_radius=search_radius, cell_tags=cell_tags)
+        if friction == "none" and mu not in (None, 0, 0.0):
+            raise ValueError(f"contact {name}: mu = {mu!r} given with friction = 'none': "
+                             "pass friction='coulomb' for Coulomb friction (or drop mu)")
+        if friction != "none" and mu is None:
+            raise ValueError(f"contact {name}: friction = {friction!r} needs mu, the friction "
+                             "coefficient")
+        mu = 0.0 if mu is None else float(mu)
+        #: the problem the pair belongs to (set by ContactProblem; a weak reference)
+        self._problem = None
+        self._fields = None
         #: the mesh of the displacement space the pair was built on
         self.mesh = V.mesh
+        self._space = V
         self.slave = build_surface(V, facet_tags, slave, f"{name}:slave", cell_tags)
         self.master = build_surface(V, facet_tags, master, f"{name}:master", cell_tags)
         s, m = self.slave, self.master
+        shared = np.intersect1d(s.vertices, m.vertices)
+        if shared.size:
+            p = s.X[np.flatnonzero(np.isin(s.vertices, shared))[0]]
+            raise ValueError(f"contact {name}: the slave and master surfaces share "
+                             f"{shared.size} node(s) (the first at ({p[0]:.6g}, {p[1]:.6g})): "
+                             "contact joins the boundaries of two separate bodies")
         if s.body_tag >= 0 and s.body_tag == m.body_tag:
             raise ValueError(f"contact {name}: slave and master bound the same body (cell tag "
                              f"{s.body_tag}); self-contact is not supported: a contact pair "
@@ -293,9 +338,33 @@ class ContactPair:
 
     # -- outputs ------------------------------------------------------------------------
     def interface(self) -> dict[str, np.ndarray]:
-        """Nodal values along the slave surface (:func:`.output.interface_table`)."""
+        """Nodal values along the slave surface, node by node along its chain(s), the same
+        on every rank.
+
+        Returns:
+            Arrays by name: ``vertex`` (the node's global vertex number in the mesh's
+            topology), ``s`` (arc length), ``x``, ``y`` (current position), ``gap`` (average
+            normal gap g̃/A, a length; nan where the node sees no master), ``pressure``
+            (normal traction, force per unit current length), ``active`` (0/1); with
+            friction ``t_tangential`` (per unit current length), ``slip``, ``status``.
+        """
         from .output import interface_table
         return interface_table(self)
+
+    def fields(self) -> dict:
+        """The pair's nodal results as DOLFINx Functions (P1 scalars on the mesh, zero off
+        the slave surface), set from the last state; ready for ``XDMFFile.write_function``
+        or a VTX writer (contact/fields.py).
+
+        Returns:
+            Functions by name: ``contact_pressure``, ``contact_gap`` and, with friction,
+            ``tangential_traction`` and ``stick_slip`` (0 inactive, 1 stick, 2 slip); the
+            same objects at every call (their names carry the pair's name).
+        """
+        from .fields import PairFields
+        if self._fields is None:
+            self._fields = PairFields(self, self._space)
+        return self._fields.update()
 
     def record(self) -> dict:
         """The step record of the pair (:func:`.output.pair_record`)."""
@@ -357,45 +426,50 @@ def _sum(parts):
     return out
 
 
+def _check_arguments(name, *, slave, master, method, smoothing, enforcement, friction,
+                     basis, slave_smoothing) -> None:
+    """Names among the registries' choices and distinct surfaces, each refused by name."""
+    if not isinstance(name, str) or not name:
+        raise ValueError(f"name = {name!r}: a non-empty string")
+    for key, value, registry in (("method", method, METHODS),
+                                 ("smoothing", smoothing, SMOOTHINGS),
+                                 ("enforcement", enforcement, ENFORCEMENTS),
+                                 ("friction", friction, FRICTION_LAWS)):
+        if not isinstance(value, str) or value not in registry:
+            raise ValueError(f"contact {name}: {key} = {value!r}: must be one of "
+                             f"{', '.join(map(repr, registry.names()))}")
+    kind = METHODS[method]
+    if basis is not None and basis not in kind.bases:
+        raise ValueError(f"contact {name}: basis = {basis!r}: method {method!r} offers "
+                         f"{', '.join(map(repr, kind.bases))}")
+    if slave_smoothing != "none" and (slave_smoothing not in SMOOTHINGS
+                                      or not kind.two_sided):
+        raise ValueError(f"contact {name}: slave_smoothing = {slave_smoothing!r}: only the "
+                         "mortar method smooths the slave, with a local curve ('hermite')")
+    both = set(np.atleast_1d(slave).tolist()) & set(np.atleast_1d(master).tolist())
+    if both:
+        raise ValueError(f"contact {name}: slave and master share the tag(s) {sorted(both)}: "
+                         "they must be two different boundaries")
+
+
 def _check_numbers(name: str, *, epsilon, tolerance, mu, E, n_gauss, search_radius,
                    cell_tags) -> None:
-    """The pair's numbers in their ranges, each refused by name (an ε ≤ 0 or a μ < 0 made
-    a converged answer with forces across open gaps, or friction that pushes)."""
-    def bad(key, value, rule):
-        raise ValueError(f"contact {name}: {key} = {value!r}: {rule}")
-
-    def number(key, value, rule):
-        try:
-            v = np.asarray(value, dtype=float)
-        except (TypeError, ValueError):
-            bad(key, value, rule)
-        if v.size == 0 or not np.all(np.isfinite(v)):
-            bad(key, value, rule)
-        return v
-
-    def positive(key, value):
-        rule = "must be a finite number > 0"
-        if not np.all(number(key, value, rule) > 0):
-            bad(key, value, rule)
-    for key, value in (("epsilon", epsilon), ("search_radius", search_radius),
-                       ("tolerance", tolerance)):
+    """The pair's numbers in their ranges (settings.RANGES, shared with the scenes), each
+    refused by name (an ε ≤ 0 or a μ < 0 made a converged answer with forces across open
+    gaps, or friction that pushes)."""
+    key = f"contact {name}: "
+    for arg, value in (("epsilon", epsilon), ("search_radius", search_radius),
+                       ("tolerance", tolerance), ("mu", mu), ("n_gauss", n_gauss)):
         if value is not None:
-            positive(key, value)
-    rule = "the friction coefficient must be a finite number >= 0"
-    if not number("mu", mu, rule) >= 0:
-        bad("mu", mu, rule)
-    if n_gauss is not None:
-        rule = "Gauss points per segment: an integer >= 2 (or None)"
-        v = number("n_gauss", n_gauss, rule)
-        if v.ndim or v != np.round(v) or v < 2:
-            bad("n_gauss", n_gauss, rule)
+            check_number(arg, value, key + arg)
     if isinstance(E, Mapping):
         if cell_tags is None:
-            bad("E", dict(E), "a mapping cell tag -> E needs cell_tags (which body is which)")
+            raise ValueError(f"{key}E = {dict(E)!r}: a mapping cell tag -> E needs cell_tags "
+                             "(which body is which)")
         for tag, value in E.items():
-            positive(f"E[{tag}]", value)
+            check_number("E", value, f"{key}E[{tag}]")
     elif E is not None:
-        positive("E", E)
+        check_number("E", E, key + "E")
 
 
 def check_facing(name: str, slave: Surface, master: Surface) -> None:

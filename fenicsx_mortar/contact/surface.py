@@ -22,6 +22,7 @@ class Surface:
     name: str
     X: np.ndarray          # (n, 2) reference coordinates, nodes ordered along the chains
     dofs: np.ndarray       # (n, 2) global dof numbers of (u_x, u_y)
+    vertices: np.ndarray   # (n,) global vertex numbers of the mesh's topology
     seg: np.ndarray        # (n_seg, 2) node indices; e₃ × (x_b − x_a) points outward
     body_tag: int          # cell tag of the body the surface bounds (−1: no cell tags)
     _mine: np.ndarray      # surface indices of the nodes whose dofs this rank owns
@@ -36,6 +37,16 @@ class Surface:
     @property
     def n(self) -> int:
         return len(self.X)
+
+    @property
+    def owned_nodes(self) -> np.ndarray:
+        """Surface indices of the nodes whose dofs this rank owns."""
+        return self._mine
+
+    @property
+    def owned_local_dofs(self) -> np.ndarray:
+        """(k, 2) this rank's local (unrolled) dofs of :attr:`owned_nodes`."""
+        return self._mine_local
 
     def owned_sum(self, values: np.ndarray) -> np.ndarray:
         """Every rank gets each node's value from the rank that owns the node (the others'
@@ -119,7 +130,7 @@ def build_surface(V, facet_tags, values: int | Sequence[int], name: str,
         if np.dot(0.5 * (p[0] + p[1]) - centroid, [-t[1], t[0]]) < 0:
             v, p = v[::-1], p[::-1]  # orient so that e₃ × t points out of the body
         d = dx.vertex_dofs_all(V, v)
-        rows.append((l2g[d], p, d, d[:, 0] < n_owned_dofs))
+        rows.append((l2g[d], p, d, d[:, 0] < n_owned_dofs, dx.global_vertices(msh, v)))
         tags.append(int(cell_tag[c]))
     gathered = comm.allgather(rows)
     tags = [t for part in comm.allgather(tags) for t in part]
@@ -130,9 +141,9 @@ def build_surface(V, facet_tags, values: int | Sequence[int], name: str,
                          f"touch cells of {len(set(tags))} bodies")
 
     key_index: dict[int, int] = {}
-    X, dofs, seg = [], [], []
+    X, dofs, verts, seg = [], [], [], []
     for part in gathered:
-        for gd, p, _, _ in part:
+        for gd, p, _, _, gv in part:
             ends = []
             for k in range(2):
                 key = int(gd[k, 0])
@@ -140,19 +151,21 @@ def build_surface(V, facet_tags, values: int | Sequence[int], name: str,
                     key_index[key] = len(X)
                     X.append(p[k])
                     dofs.append(gd[k])
+                    verts.append(gv[k])
                 ends.append(key_index[key])
             seg.append(ends)
     X, dofs = np.array(X, dtype=float), np.array(dofs, dtype=np.int64)
+    verts = np.array(verts, dtype=np.int64)
     seg = np.array(seg, dtype=np.int64).reshape(-1, 2)
     _check_chain(name, X, seg)
     order, seg_order = _chain_order(seg, len(X))
     renum = np.empty(len(X), dtype=np.int64)
     renum[order] = np.arange(len(X))
-    X, dofs = X[order], dofs[order]
+    X, dofs, verts = X[order], dofs[order], verts[order]
     seg = renum[seg[seg_order]]
 
     mine, mine_local = [], []
-    for gd, _, d, own in rows:
+    for gd, _, d, own, _ in rows:
         for k in range(2):
             if own[k]:
                 mine.append(renum[key_index[int(gd[k, 0])]])
@@ -160,7 +173,7 @@ def build_surface(V, facet_tags, values: int | Sequence[int], name: str,
     mine = np.array(mine, dtype=np.int64)
     mine_local = np.array(mine_local, dtype=np.int32).reshape(-1, 2)
     mine, first = np.unique(mine, return_index=True)
-    return Surface(name, X, dofs, seg, tags[0], mine, mine_local[first], comm)
+    return Surface(name, X, dofs, verts, seg, tags[0], mine, mine_local[first], comm)
 
 
 def _check_chain(name: str, X: np.ndarray, seg: np.ndarray) -> None:

@@ -1,0 +1,363 @@
+"""PETSc SNES Newton solves of the bulk residual plus the contact pairs' terms.
+
+A Newton solve counts as converged only when the residual norm is below ``atol`` AND below
+``rtol`` times the reference residual — the largest first residual of a load step seen so
+far, so that a cut (small) increment does not make the relative test unreachable — (or that
+reference was already below ``atol``): a huge first residual makes a relative decrease
+alone meaningless (docs/design.md §5). A load step is converged when, after such a solve, no
+pair asks for another one (``augment``: the ALM's KKT residual is below its tolerance, the
+penalty's ε has reached its target) and the acceptance check (acceptance.py) finds the
+state physical. The pairs' active sets are watched for cycles (:class:`ActiveSetMonitor`).
+
+The SNES calls back into this object through weak references: a callback holding the
+solver would make a reference cycle through the C object that the garbage collector cannot
+see, and every solver would keep its communicator until the process ends (MPICH allows
+2048). :meth:`NewtonSolver.close` destroys the PETSc objects at once.
+"""
+from __future__ import annotations
+
+import math
+import time
+import weakref
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+import numpy as np
+from petsc4py import PETSc
+
+from . import _dolfinx as dx
+from . import petsc_options as po
+from .linesearch import FullStepOrSecant
+from .settings import SolverSettings
+from .system import DisplacementSystem, MultiplierSystem
+from .timings import Timings
+
+_REASON = PETSc.SNES.ConvergedReason
+_REASONS = {v: k for k, v in vars(_REASON).items() if isinstance(v, int)}
+#: a NaN or inf residual (petsc4py 3.25 renamed the member)
+_NAN = getattr(_REASON, "DIVERGED_FNORM_NAN", None) or _REASON.DIVERGED_FUNCTION_NANORINF
+#: MUMPS's ICNTL(14) (workspace margin, per cent): its default, and how far
+#: :meth:`NewtonSolver.grow_workspace` raises it
+DEFAULT_WORKSPACE, MAX_WORKSPACE = 20, 160
+
+
+@dataclass
+class StepResult:
+    """What one :meth:`NewtonSolver.solve_step` (one ``ContactProblem.solve()``) did.
+
+    Attributes:
+        converged: A converged, accepted physical state.
+        iterations: Newton iterations, over all augmentations.
+        residuals: Residual norms, iteration by iteration.
+        augmentations: Newton solves after the first (Uzawa updates, penalty continuation).
+        reason: Why it did not converge ("" if it did).
+        workspace: MUMPS ran out of workspace (a larger one, not a cut, is the cure).
+    """
+    converged: bool
+    iterations: int = 0
+    residuals: list[float] = field(default_factory=list)
+    augmentations: int = 0
+    reason: str = ""
+    workspace: bool = False
+
+
+class ActiveSetMonitor:
+    """Watches the pairs' per-node decisions over one Newton solve: a decision vector that
+    reappears after a different one (period ≥ 2) while the residual has not even halved
+    since its first appearance means Newton is going round in circles (a repeat with
+    progress, e.g. an edge node opening and closing again on the way to the answer, is no
+    cycle)."""
+
+    def __init__(self, pairs: Sequence):
+        self.pairs = pairs
+        self._seen: list[list] = [[] for _ in pairs]
+
+    def begin_solve(self) -> None:
+        self._seen = [[] for _ in self.pairs]
+
+    def cycling(self, fnorm: float) -> str | None:
+        """A description of the first cycle found, or None."""
+        for h, seen in zip(self.pairs, self._seen):
+            d = h.decision()
+            if d is None:
+                continue
+            seen.append((d, fnorm))
+            if len(seen) >= 3 and not np.array_equal(d, seen[-2][0]):
+                for k, (old, r_old) in enumerate(seen[:-2]):
+                    if np.array_equal(d, old) and fnorm >= 0.5 * r_old:
+                        flip = np.flatnonzero(d != seen[-2][0])
+                        return (f"contact {h.name}: the active/stick-slip set of iteration "
+                                f"{len(seen) - 1} repeats iteration {k} (period "
+                                f"{len(seen) - 1 - k}) with the residual at {fnorm:.3e} "
+                                f"(was {r_old:.3e}); slave nodes {flip[:10].tolist()} flip "
+                                "(a smaller load increment usually avoids it: LoadStepper "
+                                "cuts the step)")
+        return None
+
+
+def _weak(method: Callable) -> Callable:
+    """A callback that calls ``method`` while its object lives (no strong reference)."""
+    ref = weakref.WeakMethod(method)
+
+    def call(*args):
+        m = ref()
+        return None if m is None else m(*args)
+    return call
+
+
+class NewtonSolver:
+    """PETSc SNES (newtonls + line search, MUMPS LU by default) on compiled residual and
+    Jacobian forms of ``u`` with Dirichlet conditions ``bcs`` and contact pairs, which add
+    their terms at every iterate.
+
+    Args:
+        residual: Compiled residual form F(u; v).
+        jacobian: Compiled Jacobian form.
+        u: The displacement Function (P1 vector).
+        bcs: Dirichlet conditions.
+        settings: Tolerances, line search, linear solver, extra PETSc options.
+        pairs: The contact pairs.
+        timings: Seconds by phase, added to.
+        matrix: A Jacobian matrix with the pairs' couplings preallocated (default: the
+            form's own sparsity).
+        should_stop: Called at every iteration; a non-empty string stops the solve.
+        prefix: PETSc options prefix of the SNES.
+        petsc_options: Options set under the prefix for the set-up (normalized names).
+    """
+
+    def __init__(self, residual, jacobian, u, bcs, settings: SolverSettings,
+                 pairs: Sequence, timings: Timings, matrix=None,
+                 should_stop: Callable[[], str | None] = lambda: None,
+                 prefix: str = "", petsc_options: dict[str, str] | None = None):
+        self.should_stop = should_stop
+        self.residual_form, self.jacobian_form, self.bcs = residual, jacobian, bcs
+        self.settings, self.pairs, self.timings = settings, list(pairs), timings
+        self.u = u
+        kind = MultiplierSystem if any(p.unknowns for p in pairs) else DisplacementSystem
+        #: the unknowns and their PETSc layout (system.py)
+        self.system = kind(residual, jacobian, u, bcs, self.pairs, matrix)
+        self.b, self.A, self.x = self.system.b, self.system.A, self.system.x
+        self.bc_dofs = self.system.bc_dofs
+        self.monitor = ActiveSetMonitor(self.pairs)
+        self._callback_time = 0.0
+        self.history: list[float] = []
+        self._r0: float | None = None
+        #: the largest first residual of a load step so far (the relative test's reference)
+        self._r_ref = 0.0
+        self._cycle: str | None = None
+        #: a converged state's last check (acceptance.py): a reason it is not, or None
+        self.accept: Callable[[NewtonSolver], str | None] = lambda newton: None
+        comm = u.function_space.mesh.comm
+        self.snes = PETSc.SNES().create(comm)
+        self.prefix = prefix
+        self.snes.setOptionsPrefix(prefix)
+        user = {**po.normalize(settings.petsc), **(petsc_options or {})}
+        #: the line search in use (a full-Newton retry switches to "basic" and back to it)
+        self.line_search = str(user.get("snes_linesearch_type", settings.line_search))
+        self._full_first = FullStepOrSecant(
+            _weak(self._evaluate), _weak(self._function_norm), fail=_weak(self._line_failed))
+        self.snes.setFunction(_weak(self._residual), self.b)
+        self.snes.setJacobian(_weak(self._jacobian), self.A)
+        self.snes.setConvergenceTest(_weak(self._converged))
+        self._options = po.Applied(prefix, settings, user)
+        self._options.set_from_options(self.snes)
+        # registered once, switched on and off (_set_precheck): PETSc ignores a NULL
+        # precheck, and petsc4py's setLineSearchPreCheck(None) then leaves a dangling
+        # context (a crash, seen)
+        self.snes.setLineSearchPreCheck(_weak(self._full_first.precheck))
+        self._set_precheck(self.line_search)
+
+    def close(self) -> None:
+        """Destroy the PETSc objects (SNES, matrix, vectors) and drop the kept options."""
+        for obj in (self.snes, self.A, self.b, self.x, *self.system.owned_objects()):
+            if obj is not None:
+                obj.destroy()
+        self._options.drop()
+
+    # -- SNES callbacks -------------------------------------------------------------
+    def _function_norm(self) -> float:
+        return self.snes.getFunctionNorm()
+
+    def _line_failed(self) -> None:
+        self.snes.setConvergedReason(_REASON.DIVERGED_LINE_SEARCH)
+
+    def _set_iterate(self, x) -> None:
+        self.system.push(x)
+        for p in self.pairs:
+            p.update(self.u)
+
+    def _timed_bulk(self, assemble: Callable[[], None]) -> None:
+        """Run an assembly; bulk_assembly gets its time less the contact part inside it."""
+        c0 = self.timings.get("contact", 0.0)
+        t0 = time.perf_counter()
+        assemble()
+        dt = time.perf_counter() - t0
+        self.timings["bulk_assembly"] = (self.timings.get("bulk_assembly", 0.0) + dt
+                                         - (self.timings.get("contact", 0.0) - c0))
+
+    def _residual(self, snes, x, b) -> None:
+        if self._full_first.take(x, b):  # the line search's full step, evaluated already
+            return
+        self._evaluate(x, b)
+
+    def evaluate_residual(self, x: PETSc.Vec, b: PETSc.Vec) -> None:
+        """b = F(x), bulk and contact (the state moves to x)."""
+        self._evaluate(x, b)
+
+    def _evaluate(self, x, b) -> None:
+        t0 = time.perf_counter()
+        self._set_iterate(x)
+        self._timed_bulk(lambda: self.system.assemble_residual(
+            x, b, self._add_pair_residuals if self.pairs else None))
+        self._callback_time += time.perf_counter() - t0
+
+    def _add_pair_residuals(self, b) -> None:
+        with self.timings("contact"):
+            for p in self.pairs:
+                p.add_residual(b, self.bc_dofs)
+
+    def evaluate_jacobian(self, x: PETSc.Vec, A: PETSc.Mat) -> None:
+        """A = dF/dx at the state of the last residual evaluation (that at x)."""
+        self._jacobian(None, x, A, A)
+
+    def _jacobian(self, snes, x, A, P) -> None:
+        t0 = time.perf_counter()
+        self._timed_bulk(lambda: self.system.assemble_jacobian(
+            A, self._add_pair_jacobians if self.pairs else None))
+        self._callback_time += time.perf_counter() - t0
+
+    def _add_pair_jacobians(self, A) -> None:
+        with self.timings("contact"):
+            for p in self.pairs:
+                p.add_jacobian(A, self.bc_dofs)
+
+    def _converged(self, snes, it, norms):
+        fnorm = norms[2]
+        if self._r0 is None:  # first residual of the load step (not of each augmentation)
+            # a cut increment starts with a small residual: keep the largest step start seen
+            self._r_ref = max(self._r_ref, fnorm)
+            self._r0 = self._r_ref
+        self.history.append(float(fnorm))
+        s = self.settings
+        if not math.isfinite(fnorm):
+            return _NAN
+        if self.should_stop():
+            return _REASON.DIVERGED_INNER  # petsc4py has no DIVERGED_USER
+        small = fnorm <= s.atol and (fnorm <= s.rtol * self._r0 or self._r0 <= s.atol)
+        if small:
+            return _REASON.CONVERGED_FNORM_ABS
+        # cycling guard: an active set (or stick/slip state) that comes back is a loop Newton
+        # will not leave; stop now and let the step be cut, saying which nodes flip
+        self._cycle = self.monitor.cycling(fnorm)
+        if self._cycle:
+            return _REASON.DIVERGED_INNER
+        if it >= s.max_iterations:
+            return _REASON.DIVERGED_MAX_IT
+        return _REASON.ITERATING
+
+    # -- one load step ----------------------------------------------------------------
+    def begin_step(self) -> None:
+        """A new load step (or a new attempt at one): its first residual is the relative
+        test's new reference candidate."""
+        self._r0 = None
+
+    def solve_step(self, max_augmentations: int = 50) -> StepResult:
+        """Newton solves (one per augmentation) from the current state at the current load."""
+        res = StepResult(converged=False)
+        self.begin_step()
+        for aug in range(max_augmentations + 1):
+            self.history = []
+            self._cycle = None
+            self.monitor.begin_solve()
+            self._full_first.forget()
+            self._callback_time = 0.0
+            t0 = time.perf_counter()
+            try:
+                self.snes.solve(None, self.x)
+            except PETSc.Error as e:  # a failed factorization, say: the step fails
+                res.reason = po.petsc_failure(self.snes, e)
+                res.workspace = po.out_of_workspace(self.snes)
+                self._reset_linear_solver()
+                return res
+            self.timings["linear_solve"] = (self.timings.get("linear_solve", 0.0)
+                                            + time.perf_counter() - t0 - self._callback_time)
+            reason = self.snes.getConvergedReason()
+            res.iterations += self.snes.getIterationNumber()
+            res.residuals.extend(self.history)
+            if reason <= 0 and self._cycle:
+                res.reason = f"Newton stopped by the cycling guard after " \
+                             f"{self.snes.getIterationNumber()} iterations: {self._cycle}"
+                return res
+            if reason <= 0:
+                res.reason = f"Newton failed: {_REASONS.get(reason, reason)} after " \
+                             f"{self.snes.getIterationNumber()} iterations, residuals " \
+                             + ", ".join(f"{r:.3e}" for r in self.history)
+                if reason == _REASON.DIVERGED_LINEAR_SOLVE:
+                    res.reason += "; " + po.linear_failure(self.snes)
+                    res.workspace = po.out_of_workspace(self.snes)
+                    self._reset_linear_solver()
+                return res
+            self._set_iterate(self.x)
+            if not any([p.augment() for p in self.pairs]):
+                res.reason = self.accept(self) or ""
+                res.converged, res.augmentations = not res.reason, aug
+                return res
+        res.reason = f"augmented Lagrangian: KKT not reached in {max_augmentations} augmentations"
+        return res
+
+    def converged_by_rule(self) -> bool:
+        """The last SNES solve stopped because the convergence rule said so."""
+        return self.snes.getConvergedReason() == _REASON.CONVERGED_FNORM_ABS
+
+    def grow_workspace(self) -> int | None:
+        """After MUMPS ran out of workspace (INFOG(1) = −8, −9, …): double ICNTL(14), its
+        workspace margin in per cent, for the next factorization (the KSP is reset);
+        None when it is at MAX_WORKSPACE already."""
+        key = "mat_mumps_icntl_14"
+        now = PETSc.Options().getInt(self.prefix + key, DEFAULT_WORKSPACE)
+        if now >= MAX_WORKSPACE:
+            return None
+        new = min(2 * max(now, 10), MAX_WORKSPACE)
+        self._options.set_factor_option(key, new)
+        self._reset_linear_solver()
+        return new
+
+    def _reset_linear_solver(self) -> None:
+        """Forget the factorization after a failed one: PETSc would otherwise go on with
+        MUMPS's failed instance, and every later attempt (a cut step's) fails at once with
+        INFOG(1) = -3 (B3 with a finer master: a singular iterate at t = 1.6 ended the run
+        after 8 cuts that never factorized)."""
+        self.snes.getKSP().reset()
+
+    def set_line_search(self, kind: str) -> None:
+        """Switch SNES's line search (through the options database, as petsc4py before 3.24
+        has no line-search object; dropped again once applied)."""
+        opts = PETSc.Options()
+        key = self.prefix + "snes_linesearch_type"
+        before = opts.getString(key) if opts.hasName(key) else None
+        opts[key] = po.line_search_type(kind)
+        self.snes.setFromOptions()
+        if before is None:
+            opts.delValue(key)
+        else:
+            opts[key] = before
+        self._set_precheck(kind)
+
+    def _set_precheck(self, kind: str) -> None:
+        self._full_first.enabled = kind == "l2-full"
+        self._full_first.forget()
+
+    def save_state(self) -> PETSc.Vec:
+        return self.x.copy()
+
+    def restore_state(self, saved: PETSc.Vec) -> None:
+        saved.copy(self.x)
+        self._set_iterate(self.x)
+
+    def unconstrained_residual(self) -> PETSc.Vec:
+        """F(u) without Dirichlet modification (contact included): reactions live here."""
+        b = self.system.unconstrained()
+        dx.assemble_unconstrained_residual(b, self.residual_form)
+        for p in self.pairs:
+            p.add_residual(b, np.zeros(0, dtype=np.int32))
+        return b

@@ -1,0 +1,311 @@
+"""PETSc options of the Newton solver, applied under an options prefix, and PETSc's own
+word on them: which options PETSc rejects or never reads, and why a factorization failed.
+
+DOLFINx's convention (``fem.petsc.NonlinearProblem``): the solver's options live in PETSc's
+global options database under a prefix the user chooses, so the command line and the
+database reach the solver (``-<prefix>snes_monitor``); the options given as a dict are set
+there, read once, and removed again. Ours: the package's defaults are set only where the
+database has no value of its own, so a command-line ``-<prefix>ksp_type`` is not
+overwritten; MUMPS's ``-mat_mumps_*`` options are read at every new factorization, not at
+set-up, so they stay in the database while the solver lives.
+"""
+from __future__ import annotations
+
+import ctypes
+import ctypes.util
+import weakref
+from typing import Iterable, Mapping
+
+from petsc4py import PETSc
+
+from .settings import SolverSettings
+
+#: options read at a factorization, not at set-up: kept in the database while the solver
+#: lives
+FACTOR_OPTIONS = ("mat_mumps_",)
+#: which live solver set a kept option last: two solvers under one prefix share the keys,
+#: and a dead one must not take the live one's options with it
+_OWNER: dict[str, object] = {}
+#: SNES types whose iterations our convergence rule and active-set callbacks steer
+NEWTON_TYPES = ("newtonls",)
+
+
+def normalize(options: Mapping[str, object] | None) -> dict[str, str]:
+    """Options as PETSc's database takes them: keys without '-', True → '' (a flag),
+    False → 'false', numbers as text.
+
+    Args:
+        options: ``{"-ksp_type": "gmres", "snes_monitor": True, ...}`` or None.
+
+    Returns:
+        ``{"ksp_type": "gmres", "snes_monitor": "", ...}``.
+    """
+    out = {}
+    for k, v in (options or {}).items():
+        if not isinstance(k, str) or not k.lstrip("-"):
+            raise ValueError(f"petsc_options: {k!r} is not a PETSc option name")
+        out[k.lstrip("-")] = "" if v is True else ("false" if v is False else str(v))
+    return out
+
+
+def line_search_type(kind: str) -> str:
+    """PETSc's line-search type for ours: ``l2-full`` is ``basic`` with a precheck."""
+    return "basic" if kind == "l2-full" else kind
+
+
+def linear_solver_options(name: str) -> dict[str, str]:
+    """The KSP and PC options of a :data:`~.settings.LINEAR_SOLVERS` name."""
+    if name == "gmres-hypre":
+        return {"ksp_type": "gmres", "pc_type": "hypre", "ksp_rtol": "1e-12"}
+    return {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": name}
+
+
+def defaults(settings: SolverSettings) -> dict[str, str]:
+    """The package's options for ``settings``, before the user's."""
+    out = {"snes_type": "newtonls",
+           "snes_linesearch_type": line_search_type(settings.line_search),
+           "snes_max_it": str(settings.max_iterations), "snes_max_funcs": "100000"}
+    out.update(linear_solver_options(settings.linear_solver))
+    return out
+
+
+class Applied:
+    """The options of one solver in the database under its prefix: applied with
+    :meth:`set_from_options`, the kept (factorization) ones removed by :meth:`drop` or when
+    the object is garbage."""
+
+    def __init__(self, prefix: str, settings: SolverSettings,
+                 user: Mapping[str, str]):
+        self.prefix = prefix
+        opts = PETSc.Options()
+        own = {k: v for k, v in defaults(settings).items() if not opts.hasName(prefix + k)}
+        self.options = {**own, **user}
+        self.factor_keys = [prefix + k for k in self.options if k.startswith(FACTOR_OPTIONS)]
+        self._token = object()
+        # (grow_workspace adds to the list; the finalizer sees it)
+        self._finalizer = weakref.finalize(self, _drop, self.factor_keys, self._token)
+
+    def set_from_options(self, snes: PETSc.SNES) -> None:
+        """Put the options in the database, let SNES and KSP read them, and remove them
+        again (but the factorization options; a value the database had before returns)."""
+        opts = PETSc.Options()
+        before = {k: opts.getString(self.prefix + k) for k in self.options
+                  if opts.hasName(self.prefix + k)}
+        for k, v in self.options.items():
+            opts[self.prefix + k] = v
+        snes.setFromOptions()
+        snes.getKSP().setFromOptions()
+        for k in self.options:
+            if self.prefix + k in self.factor_keys:
+                continue
+            if k in before:
+                opts[self.prefix + k] = before[k]
+            else:
+                opts.delValue(self.prefix + k)
+        for k in self.factor_keys:
+            _OWNER[k] = self._token
+
+    def set_factor_option(self, key: str, value) -> None:
+        """Set a factorization option (read at the next factorization)."""
+        PETSc.Options()[self.prefix + key] = value
+        _OWNER[self.prefix + key] = self._token
+        if self.prefix + key not in self.factor_keys:
+            self.factor_keys.append(self.prefix + key)
+
+    def drop(self) -> None:
+        self._finalizer()
+
+
+def _drop(keys: list[str], token: object) -> None:
+    opts = PETSc.Options()
+    for k in keys:
+        if _OWNER.get(k) is token:
+            opts.delValue(k)
+            del _OWNER[k]
+
+
+# ------------------------------------------------------------------- checks of options
+
+
+def check_solver_choice(settings: SolverSettings, user: Mapping[str, str],
+                        multipliers: bool, key: str = "petsc_options") -> None:
+    """Options that cannot work with this problem, refused by name: an SNES type other
+    than Newton's (``ksponly`` does one linear solve and reports success; our convergence
+    rule and the active set live in the Newton iterations), a replaced convergence test,
+    and, with multipliers (a saddle-point system with zero pivots), a factorization
+    without MUMPS's pivoting or an iterative method.
+
+    Raises:
+        ValueError: naming the option.
+    """
+    snes = user.get("snes_type", "newtonls")
+    if snes not in NEWTON_TYPES:
+        raise ValueError(f"{key}: -snes_type {snes}: the contact solver is Newton's method "
+                         "(newtonls): its convergence rule and active-set updates run in "
+                         "the Newton iterations (a type that does not iterate, as ksponly, "
+                         "would report a wrong answer as converged)")
+    if "snes_convergence_test" in user:
+        raise ValueError(f"{key}: -snes_convergence_test would replace the convergence rule "
+                         "(residual below atol and rtol, docs/design.md §5)")
+    if not multipliers:
+        return
+    options = {**defaults(settings), **user}
+    lu = options.get("pc_factor_mat_solver_type", "mumps")
+    iterative = options.get("ksp_type") != "preonly" or options.get("pc_type") != "lu"
+    if iterative or lu != "mumps":
+        what = (f"-ksp_type {options.get('ksp_type')} -pc_type {options.get('pc_type')}"
+                if iterative else f"-pc_factor_mat_solver_type {lu}")
+        raise ValueError(f"{key}: {what} cannot solve the saddle-point system of the "
+                         "Lagrange multipliers (zero pivots that need MUMPS's pivoting, no "
+                         "preconditioner for the multiplier rows): use MUMPS, or "
+                         "enforcement 'alm' or 'penalty'")
+
+
+def _libpetsc():
+    """The loaded PETSc library (petsc4py's), for the calls petsc4py lacks."""
+    with open("/proc/self/maps") as f:
+        paths = {line.split()[-1] for line in f if "libpetsc" in line and "/" in line}
+    path = next(iter(sorted(paths)), None) or ctypes.util.find_library("petsc_real")
+    return ctypes.CDLL(path) if path else None
+
+
+def error_message(code: int) -> str:
+    """PETSc's text for an error code."""
+    lib = _libpetsc()
+    text = ctypes.c_char_p()
+    if lib is not None and lib.PetscErrorMessage(code, ctypes.byref(text), None) == 0 \
+            and text.value:
+        return text.value.decode(errors="replace")
+    return f"PETSc error {code}"
+
+
+def _probe(settings: SolverSettings, user: Mapping[str, str]) -> list[str]:
+    """Apply the defaults and ``user`` to a throw-away SNES as the solver does and return
+    the user options PETSc did not read. Raises PETSc.Error if PETSc rejects one."""
+    prefix = "fmcheck_"
+    options = {**defaults(settings), **user}
+    opts = PETSc.Options()
+    for k, v in options.items():
+        opts[prefix + k] = v
+    A = PETSc.Mat().createAIJ([2, 2], nnz=1, comm=PETSc.COMM_SELF)
+    snes = PETSc.SNES().create(PETSc.COMM_SELF)
+    try:
+        A.setUp()
+        A.setValue(0, 0, 1.0)
+        A.setValue(1, 1, 1.0)
+        A.assemble()
+        snes.setOptionsPrefix(prefix)
+        snes.setFunction(lambda s, x, f: x.copy(f), A.createVecLeft())
+        snes.setJacobian(lambda s, x, J, P: None, A)
+        snes.setFromOptions()
+        snes.getKSP().setFromOptions()
+        if any(k.startswith(FACTOR_OPTIONS) for k in user):
+            # read at the first factorization: factorize the 2 x 2 identity
+            snes.getKSP().setOperators(A)
+            snes.getKSP().setUp()
+        lib = _libpetsc()
+        if lib is None:
+            return []
+        unused = []
+        for k in user:
+            flag = ctypes.c_int(0)
+            lib.PetscOptionsUsed(None, (prefix + k).encode(), ctypes.byref(flag))
+            if not flag.value:
+                unused.append(k)
+        return unused
+    finally:
+        for k in options:
+            opts.delValue(prefix + k)
+        snes.destroy()
+        A.destroy()
+
+
+def unread(settings: SolverSettings, user: Mapping[str, str],
+           key: str = "petsc_options") -> list[str]:
+    """The options of ``user`` that PETSc does not read when the solver is set up (or, for
+    ``-mat_mumps_*``, at its first factorization): unknown, misspelt, or not for this
+    solver (``-mat_mumps_*`` with SuperLU_dist).
+
+    Returns:
+        The unread option names (without '-').
+
+    Raises:
+        ValueError: naming an option whose value PETSc rejects.
+    """
+    if not user:
+        return []
+    try:
+        return _probe(settings, user)
+    except PETSc.Error:
+        for k, v in user.items():   # which one: alone with the defaults
+            try:
+                _probe(settings, {k: v})
+            except PETSc.Error as e:
+                raise ValueError(f"{key}: -{k} = {v!r}: PETSc rejects it "
+                                 f"({error_message(e.ierr)})") from None
+        raise ValueError(f"{key}: PETSc rejects these options together") from None
+
+
+def unread_message(names: Iterable[str], key: str = "petsc_options") -> str:
+    names = list(names)
+    return (f"{key}: -{names[0]}: not read by PETSc when the solver is set up (unknown, "
+            "misspelt, not for this solver, or read too late to take effect)"
+            + (f"; also {', '.join('-' + k for k in names[1:])}" if names[1:] else ""))
+
+
+# ------------------------------------------------------------ why a linear solve failed
+
+
+def linear_failure(snes: PETSc.SNES) -> str:
+    """Why the linear solve of the last Newton iteration failed: the KSP's reason and, for
+    a MUMPS factorization, INFOG(1) and INFOG(2); for an iterative method, its iterations
+    and residual."""
+    ksp = snes.getKSP()
+    reasons = {v: k for k, v in vars(PETSc.KSP.ConvergedReason).items() if isinstance(v, int)}
+    what = reasons.get(ksp.getConvergedReason(), "unknown")
+    if ksp.getType() != "preonly":
+        what += f" after {ksp.getIterationNumber()} iterations, residual " \
+                f"{ksp.getResidualNorm():.3e}"
+    return f"the linear solve failed ({what}{_mumps_info(ksp.getPC())})"
+
+
+def petsc_failure(snes: PETSc.SNES, error: PETSc.Error) -> str:
+    """The step's failure message for a PETSc error raised inside SNESSolve (e.g. a failed
+    factorization with -ksp_error_if_not_converged)."""
+    return f"PETSc error in the Newton solve: {error_message(error.ierr)}" \
+           f"{_mumps_info(snes.getKSP().getPC())}"
+
+
+#: MUMPS INFOG(1) values that say a workspace (integer, real, or a buffer) was too small
+_WORKSPACE = {-8, -9, -11, -12, -14, -15, -17, -20}
+
+
+def out_of_workspace(snes: PETSc.SNES) -> bool:
+    """The last factorization was MUMPS's and failed for lack of workspace."""
+    return _mumps_infog(snes.getKSP().getPC())[0] in _WORKSPACE
+
+
+def _mumps_infog(pc) -> tuple[int, int]:
+    """MUMPS's INFOG(1), INFOG(2) of the PC's factorization ((0, 0): not MUMPS's)."""
+    try:
+        if pc.getType() not in ("lu", "cholesky") or pc.getFactorSolverType() != "mumps":
+            return 0, 0
+        F = pc.getFactorMatrix()
+        return F.getMumpsInfog(1), F.getMumpsInfog(2)
+    except PETSc.Error:
+        return 0, 0
+
+
+def _mumps_info(pc) -> str:
+    info, detail = _mumps_infog(pc)
+    if info >= 0:
+        return ""
+    return f", MUMPS factorization failed: INFOG(1) = {info}, INFOG(2) = " \
+           f"{detail}{_MUMPS.get(info, '')}"
+
+
+_MUMPS = {-10: ": the matrix is numerically singular (a body or a direction left free? a slave "
+               "node also held by a Dirichlet condition?)",
+          -8: ": the workspace is too small (raise -mat_mumps_icntl_14)",
+          -9: ": the workspace is too small (raise -mat_mumps_icntl_14)",
+          -13: ": out of memory", -19: ": the memory limit ICNTL(23) is too small"}
