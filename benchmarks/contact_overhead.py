@@ -8,7 +8,7 @@ What it measures
    about the Hertz width (the converged active set's size; ``--solve-hertz`` solves the
    scene instead, which takes minutes, and prints the run's own phase times). In that
    state one Newton iteration's worth of work — one residual and one Jacobian evaluation —
-   is timed through the solver's own callbacks (``NewtonSolver._residual`` / ``_jacobian``)
+   is timed through the solver's own callbacks (``evaluate_residual`` / ``evaluate_jacobian``)
    with a fresh ``Timings`` per repetition, ``--reps`` times, and the medians are printed:
 
    * bulk assembly: the UFL residual (with lifting) and Jacobian, as the solver assembles
@@ -79,7 +79,9 @@ from fenicsx_mortar.meshing import build_domain  # noqa: E402
 from fenicsx_mortar.scene import Scene, from_dict, load_scene  # noqa: E402
 from fenicsx_mortar.problem import ContactProblem  # noqa: E402
 from fenicsx_mortar.run import scene_pairs  # noqa: E402
-from fenicsx_mortar.solver import NewtonSolver, Timings, run_load_steps  # noqa: E402
+from fenicsx_mortar.newton import NewtonSolver  # noqa: E402
+from fenicsx_mortar.stepping import LoadStepper  # noqa: E402
+from fenicsx_mortar.timings import Timings  # noqa: E402
 
 from benchmarks.analytics import HERTZ_A as A_HERTZ  # noqa: E402
 
@@ -101,41 +103,42 @@ def build(scene: Scene):
     pairs = scene_pairs(scene, dom, bulk.V)
     problem = ContactProblem(bulk.residual, bulk.u, bulk.bcs, pairs, bulk.jacobian,
                              settings=scene.solver)
-    return dom, bulk, pairs, problem.solver
+    build.problem = problem  # (the solver lives as long as its problem)
+    return dom, bulk, pairs, problem.newton
 
 
 def one_iteration(solver: NewtonSolver, reps: int) -> dict[str, float]:
     """Median seconds, by phase, of one residual + one Jacobian evaluation at the solver's
-    current iterate, run through the solver's own callbacks (``NewtonSolver._residual`` /
-    ``_jacobian``) with a fresh ``Timings`` per repetition: ``bulk_assembly`` (UFL residual
+    current iterate, run through the solver's own callbacks (``evaluate_residual`` /
+    ``evaluate_jacobian``) with a fresh ``Timings`` per repetition: ``bulk_assembly`` (UFL residual
     with lifting and Jacobian, final PETSc assembly), ``contact`` (all contact work) and its
     sub-phases ``contact_search``, ``contact_kernel`` (curve + projection + mortar
     integration), ``contact_insertion`` (PETSc). ``contact`` less those three is the rest:
     gather of coordinates, nodal sums, enforcement and the sparse R/K build."""
     x, b, A = solver.x, solver.b, solver.A
-    for h in solver.hooks:
+    for h in solver.pairs:
         h._first_jacobian = False  # a typical (not first-of-step) iteration
-    saved = solver.timings, [h.timings for h in solver.hooks]
+    saved = solver.timings, [h.timings for h in solver.pairs]
     samples: dict[str, list[float]] = {}
     try:
         for _ in range(reps + 1):  # the first round warms up and is dropped
             t = Timings()
             solver.timings = t
-            for h in solver.hooks:
+            for h in solver.pairs:
                 h.timings = t
-            solver._residual(solver.snes, x, b)
-            solver._jacobian(solver.snes, x, A, A)
+            solver.evaluate_residual(x, b)
+            solver.evaluate_jacobian(x, A)
             for k in ("bulk_assembly",) + CONTACT_PHASES:
                 samples.setdefault(k, []).append(t.get(k, 0.0))
     finally:
         solver.timings = saved[0]
-        for h, tt in zip(solver.hooks, saved[1]):
+        for h, tt in zip(solver.pairs, saved[1]):
             h.timings = tt
     out = {k: statistics.median(v[1:]) for k, v in samples.items()}
-    st = solver.hooks[0].state
+    st = solver.pairs[0].state
     out["_contrib"] = st.gap.size
     out["_active"] = int(np.count_nonzero(st.p > 0))
-    out["_slave_segments"] = len(solver.hooks[0].slave.seg)
+    out["_slave_segments"] = len(solver.pairs[0].slave.seg)
     return out
 
 
@@ -172,8 +175,9 @@ def hertz(reps: int, solve: bool) -> dict:
     info = f"{cells} cells, {ndofs} dofs; build {t_build:.1f} s"
     if solve:
         t0 = time.perf_counter()
-        ok, msg = run_load_steps(solver, scene.steps, bulk.set_time, lambda *a: None,
-                                 max_augmentations=scene.contacts[0].enforcement.max_augmentations)
+        ended = LoadStepper(build.problem, bulk.set_time, scene.steps.targets(),
+                            max_cuts=scene.steps.max_cuts, on_event=None).run()
+        msg = ended.message
         t_solve = time.perf_counter() - t0
         phases = ", ".join(f"{k} {v:.1f} s" for k, v in solver.timings.items())
         info += f"; solved in {t_solve:.1f} s ({msg}; {phases})"
@@ -185,7 +189,7 @@ def hertz(reps: int, solve: bool) -> dict:
         u.interpolate(lambda X: np.stack([np.zeros(X.shape[1]), np.full(X.shape[1], -delta)]),
                       dom.cells("disk"))
         u.x.scatter_forward()
-        dx.function_vector(u).copy(solver.x)
+        solver.system.pull(solver.x)   # (with multipliers x is longer than u)
         bulk.set_time(1.0)
         info += f"; state: disk pressed rigidly {delta:.2e} into the block (--solve-hertz: " \
                 f"the solved state)"

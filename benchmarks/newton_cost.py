@@ -58,20 +58,20 @@ def run(scene) -> dict:
     its records."""
     scene.output.xdmf = scene.output.plots = False
     clock = {}
-    stepping = fm_run.run_load_steps
+    stepping = fm_run.LoadStepper.run
 
-    def timed(*args, **kw):
+    def timed(self):
         w0, c0 = time.perf_counter(), time.process_time()
         try:
-            return stepping(*args, **kw)
+            return stepping(self)
         finally:
             clock["wall"], clock["cpu"] = time.perf_counter() - w0, time.process_time() - c0
 
-    fm_run.run_load_steps = timed
+    fm_run.LoadStepper.run = timed
     try:
         res = solve(scene, log=lambda s: None)
     finally:
-        fm_run.run_load_steps = stepping
+        fm_run.LoadStepper.run = stepping
     t = res.timings
     solve_wall, cpu = clock["wall"], clock["cpu"]
     its = [s["newton_iterations"] for s in res.steps]
