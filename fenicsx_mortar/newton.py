@@ -76,7 +76,14 @@ class ActiveSetMonitor:
         self._seen = [[] for _ in self.pairs]
 
     def cycling(self, fnorm: float) -> str | None:
-        """A description of the first cycle found, or None."""
+        """Record the pairs' decisions of this iterate and look for a cycle.
+
+        Args:
+            fnorm: The iterate's residual norm.
+
+        Returns:
+            A description of the first cycle found, or None.
+        """
         for h, seen in zip(self.pairs, self._seen):
             d = h.decision()
             if d is None:
@@ -201,7 +208,12 @@ class NewtonSolver:
         self._evaluate(x, b)
 
     def evaluate_residual(self, x: PETSc.Vec, b: PETSc.Vec) -> None:
-        """b = F(x), bulk and contact (the state moves to x)."""
+        """b = F(x), bulk and contact (the state moves to x).
+
+        Args:
+            x: The unknowns (the system's layout).
+            b: The residual, overwritten.
+        """
         self._evaluate(x, b)
 
     def _evaluate(self, x, b) -> None:
@@ -217,7 +229,12 @@ class NewtonSolver:
                 p.add_residual(b, self.bc_dofs)
 
     def evaluate_jacobian(self, x: PETSc.Vec, A: PETSc.Mat) -> None:
-        """A = dF/dx at the state of the last residual evaluation (that at x)."""
+        """A = dF/dx at the state of the last residual evaluation (that at x).
+
+        Args:
+            x: The unknowns of the last :meth:`evaluate_residual`.
+            A: The Jacobian matrix, overwritten.
+        """
         self._jacobian(None, x, A, A)
 
     def _jacobian(self, snes, x, A, P) -> None:
@@ -262,7 +279,15 @@ class NewtonSolver:
         self._r0 = None
 
     def solve_step(self, max_augmentations: int = 50) -> StepResult:
-        """Newton solves (one per augmentation) from the current state at the current load."""
+        """Newton solves (one per augmentation) from the current state at the current load,
+        ended by the acceptance check :attr:`accept`.
+
+        Args:
+            max_augmentations: Newton solves after the first.
+
+        Returns:
+            What happened (the state is left where the solves ended).
+        """
         res = StepResult(converged=False)
         self.begin_step()
         for aug in range(max_augmentations + 1):
@@ -331,7 +356,11 @@ class NewtonSolver:
 
     def set_line_search(self, kind: str) -> None:
         """Switch SNES's line search (through the options database, as petsc4py before 3.24
-        has no line-search object; dropped again once applied)."""
+        has no line-search object; dropped again once applied).
+
+        Args:
+            kind: One of :data:`~.settings.LINE_SEARCHES`.
+        """
         opts = PETSc.Options()
         key = self.prefix + "snes_linesearch_type"
         before = opts.getString(key) if opts.hasName(key) else None
@@ -348,9 +377,15 @@ class NewtonSolver:
         self._full_first.forget()
 
     def save_state(self) -> PETSc.Vec:
+        """A copy of the unknowns (for :meth:`restore_state`)."""
         return self.x.copy()
 
     def restore_state(self, saved: PETSc.Vec) -> None:
+        """Back to saved unknowns; the pairs' states follow.
+
+        Args:
+            saved: From :meth:`save_state`.
+        """
         saved.copy(self.x)
         self._set_iterate(self.x)
 

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import warnings
 import weakref
-from typing import Callable, Mapping, Sequence
+from typing import TYPE_CHECKING, Callable, Mapping, Sequence
 
 import numpy as np
 import ufl
@@ -34,6 +34,12 @@ from .acceptance import Acceptance
 from .newton import NewtonSolver, StepResult
 from .settings import SolverSettings, check_number
 from .timings import Timings
+
+if TYPE_CHECKING:
+    from dolfinx.fem import Form, Function
+    from dolfinx.mesh import MeshTags
+
+    from .contact.pair import ContactPair
 
 
 class ContactProblem:
@@ -69,11 +75,12 @@ class ContactProblem:
         ValueError: an argument that cannot work, named.
     """
 
-    def __init__(self, F, u, bcs: Sequence = (), pairs: Sequence = (), J=None, *,
+    def __init__(self, F: ufl.Form | Form, u: Function, bcs: Sequence = (),
+                 pairs: Sequence[ContactPair] = (), J: ufl.Form | Form | None = None, *,
                  petsc_options_prefix: str = "fenicsx_mortar_",
                  petsc_options: Mapping[str, object] | None = None,
                  settings: SolverSettings | None = None, acceptance: bool = True,
-                 max_augmentations: int = 30, cell_tags=None,
+                 max_augmentations: int = 30, cell_tags: MeshTags | None = None,
                  body_names: Mapping[int, str] | None = None,
                  timings: Timings | None = None,
                  should_stop: Callable[[], str | None] | None = None):
@@ -164,7 +171,7 @@ class ContactProblem:
         constrained dof, the force its support exerts on the body."""
         return self.newton.unconstrained_residual()
 
-    def reaction(self, facet_tags, tag: int | Sequence[int]) -> np.ndarray:
+    def reaction(self, facet_tags: MeshTags, tag: int | Sequence[int]) -> np.ndarray:
         """The force (x, y) that the supports on the tagged facets exert on the body: the
         sum of F(u) (contact included, Dirichlet rows not replaced) over the dofs of those
         facets, summed over the ranks (collective).

@@ -24,7 +24,7 @@ from mpi4py import MPI
 
 from . import _dolfinx as dx
 from . import checkpoint, guards, output
-from .contact import output as interface_output
+from . import interface_files
 from .bulk import Bulk, StressOutput, build_bulk
 from .meshing import Domain, build_domain
 from .parallel import BrokenOutput, RankOSError, RunError, agree, on_rank0
@@ -291,7 +291,7 @@ class _Outputs:
         _write(out, comm, kept, lambda: checkpoint.save(
             out, comm, self.bulk.u, self.pairs, t, k, steps, self.fingerprints),
             "checkpoint.npz", k)
-        _write(out, comm, kept, lambda: [interface_output.write_interface(p, out, k)
+        _write(out, comm, kept, lambda: [interface_files.write_interface(p, out, k)
                                          for p in self.pairs], rank0_only=True)
         _write(out, comm, kept, lambda: output.write_summary(out, summary), "summary.json",
                k, rank0_only=True)
@@ -341,7 +341,7 @@ def _final_outputs(out: Path, scene: Scene, summary: dict, steps: list, pairs: l
         output.plot_reactions(out, steps)
         output.plot_convergence(out, steps)
         for p in pairs:
-            interface_output.plot_pressure(p, out)
+            interface_files.plot_pressure(p, out)
 
 
 def _write(out: Path, comm: MPI.Comm, kept: dict, write: Callable[[], object],
