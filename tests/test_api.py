@@ -280,3 +280,31 @@ def test_the_library_api_is_listed():
     names = set(dir(fm))
     assert {"ContactPair", "ContactProblem", "LoadStepper", "SolverSettings"} <= names
     assert set(fm.__all__) <= names
+
+
+def test_the_command_line_reaches_the_solver_under_its_prefix(tmp_path):
+    """A script that hands PETSc its command line (``petsc4py.init(sys.argv)``, PETSc's
+    way) steers the solver with ``-<prefix>...`` options."""
+    import subprocess
+    import sys
+    script = tmp_path / "script.py"
+    script.write_text(
+        "import sys\nimport petsc4py\npetsc4py.init(sys.argv)\n"
+        "from conftest import ROOT\n"
+        "import fenicsx_mortar as fm\nfrom fenicsx_mortar import load_scene\n"
+        "from fenicsx_mortar.bulk import build_bulk\n"
+        "from fenicsx_mortar.meshing import build_domain\n"
+        "from fenicsx_mortar.run import scene_pairs\n"
+        "scene = load_scene(ROOT / 'tests/bad_input/_base.toml')\n"
+        "dom = build_domain(scene)\nbulk = build_bulk(scene, dom)\n"
+        "pairs = scene_pairs(scene, dom, bulk.V)\n"
+        "p = fm.ContactProblem(bulk.residual, bulk.u, bulk.bcs, pairs, bulk.jacobian,\n"
+        "                      petsc_options_prefix='cl_')\n"
+        "bulk.set_time(0.5)\nprint('REASON', p.solve().reason)\n")
+    env = {"PYTHONPATH": f"{ROOT / 'tests'}:{ROOT}"}
+    import os
+    proc = subprocess.run([sys.executable, str(script), "-cl_snes_max_it", "1"],
+                          capture_output=True, text=True, env={**os.environ, **env},
+                          timeout=300)
+    assert "REASON Newton failed: DIVERGED_MAX_IT after 1 iterations" in proc.stdout, \
+        proc.stdout[-2000:] + proc.stderr[-2000:]
