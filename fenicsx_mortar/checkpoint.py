@@ -21,7 +21,7 @@ import numpy as np
 from mpi4py import MPI
 
 from . import _dolfinx as dx
-from .output import write_atomic
+from .output import write_file
 from .parallel import agree, on_rank0
 from .scene import SceneError
 
@@ -101,7 +101,7 @@ def save(out: Path, comm: MPI.Comm, u, pairs, t: float, k: int, steps: list[dict
                 arrays[f"pair{i}_{key}"] = value
         buf = io.BytesIO()
         np.savez(buf, **arrays)
-        write_atomic(out / FILE, buf.getvalue())
+        write_file(out, FILE, buf.getvalue())
     on_rank0(comm, write)
 
 

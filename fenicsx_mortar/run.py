@@ -145,15 +145,15 @@ def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM
             cleared = on_rank0(comm, lambda: output.clear_previous(out))
             if cleared:
                 log(f"  removed {cleared} files of a previous run in {out}")
-            _write(out, comm, kept, lambda: output.write_atomic(out / "scene.json",
-                                                                scene_to_json(scene)),
+            _write(out, comm, kept, lambda: output.write_file(out, "scene.json",
+                                                              scene_to_json(scene)),
                    rank0_only=True)
         with timings("output"):
             if scene.output.xdmf:
                 # a restart continues in its own file: XDMF cannot be reopened for appending
                 name = f"solution_from_step_{k0}.xdmf" if restart else "solution.xdmf"
-                writer = _xdmf(out, kept, lambda: dx.XDMFWriter(comm, str(out / name),
-                                                                 dom.mesh))
+                writer = _xdmf(out, kept, lambda: dx.XDMFWriter(
+                    comm, str(output.path_for(out, name)), dom.mesh))
                 stress.update()
                 _xdmf(out, kept, lambda: writer.write([bulk.u, stress.sigma], t0))
     warned: set[str] = set()
