@@ -27,7 +27,7 @@ from typing import Iterator
 
 import numpy as np
 
-from .scene import SceneError
+from .scene import SceneError, json_loads
 
 
 def prepare_out(out: Path) -> None:
@@ -68,7 +68,7 @@ def clear_previous(out: Path) -> int:
     folder = out / "interface"
     if folder.is_dir() and not folder.is_symlink():
         try:
-            names = [c["name"] for c in json.loads((out / "scene.json").read_text())
+            names = [c["name"] for c in json_loads((out / "scene.json").read_text())
                      .get("contacts", [])]
         except (OSError, ValueError, TypeError, KeyError, AttributeError):
             names = []      # no readable record of its pairs: their files stay

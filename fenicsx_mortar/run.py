@@ -106,6 +106,8 @@ def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM
     _enter("meshing")
     with timings("mesh"):
         dom = build_domain(scene, comm)
+    for w in dom.warnings:
+        log(f"  warning: {w}")
     _enter("compiling the forms (JIT)")
     with timings("jit"), _jit_cache_kept_whole():
         bulk = build_bulk(scene, dom)
@@ -137,7 +139,7 @@ def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM
 
     summary = {"title": scene.title, "converged": False, "message": "running",
                "effects": scene.effects(), "dofs": ndofs, "ranks": comm.size,
-               "steps": steps, "timings": timings, "warnings": []}
+               "steps": steps, "timings": timings, "warnings": list(dom.warnings)}
     writer = None
     kept = {"checkpoint.npz": k0, "summary.json": k0}
     if out is not None:
