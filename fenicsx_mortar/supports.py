@@ -29,8 +29,9 @@ if TYPE_CHECKING:
     from .meshing import Domain
 
 _COMPONENTS = ("x", "y")
-#: singular values of the support rows (and the contact rows) below this, relative to the
-#: largest, leave a rigid motion free
+#: singular values of the support rows (and the contact rows) below this times the root of
+#: their number leave a rigid motion free (each row is O(1): a unit vector's component of
+#: a motion scaled to the piece's size)
 _FREE = 1e-8
 
 
@@ -169,11 +170,11 @@ def _check_conflicts(scene: Scene, entries: list[np.ndarray], x: np.ndarray,
 
 
 def _null(A: np.ndarray, n: int, tol: float = _FREE) -> np.ndarray:
-    """An orthonormal basis (n, k) of the null space of A (m, n)."""
+    """An orthonormal basis (n, k) of the null space of A (m, n), whose rows are O(1)."""
     if A.size == 0:
         return np.eye(n)
     _, s, vt = np.linalg.svd(A)
-    rank = int((s > tol * max(s[0], 1e-300)).sum()) if s.size else 0
+    rank = int((s > tol * math.sqrt(len(A))).sum())
     return vt[rank:].T
 
 
@@ -274,6 +275,11 @@ def _direction(a: float, b: float) -> str:
     return f"({a:.3g}, {b:.3g})"
 
 
+def _point(x: float, y: float, L: float) -> str:
+    # round-off below 1e-9 of the piece's size is 0: "(0, 1)", not "(5.6e-17, 1)"
+    return "(" + ", ".join(f"{v if abs(v) > 1e-9 * L else 0.0:.6g}" for v in (x, y)) + ")"
+
+
 def _describe(W: np.ndarray, centre: np.ndarray, L: float) -> str:
     """The rigid motions spanned by the columns of W (x translation, y translation,
     turning scaled by L), in words."""
@@ -285,7 +291,7 @@ def _describe(W: np.ndarray, centre: np.ndarray, L: float) -> str:
         a, b, c = W[:, 0]
         if abs(c) < 1e-9 * max(abs(a), abs(b)):
             return f"translation along {_direction(a, b)}"
-        return f"turning about ({xc - b * L / c:.6g}, {yc + a * L / c:.6g})"
+        return f"turning about {_point(xc - b * L / c, yc + a * L / c, L)}"
     c1, c2 = W[2]
     if max(abs(c1), abs(c2)) < 1e-9:
         return "translation along x and y"
@@ -295,4 +301,4 @@ def _describe(W: np.ndarray, centre: np.ndarray, L: float) -> str:
     w = w / w[2]
     w = w - np.dot(w[:2], t[:2]) * t                 # the turn whose centre is nearest
     return (f"translation along {_direction(t[0], t[1])} and turning about "
-            f"({xc - w[1] * L:.6g}, {yc + w[0] * L:.6g})")
+            f"{_point(xc - w[1] * L, yc + w[0] * L, L)}")
