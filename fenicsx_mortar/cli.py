@@ -250,8 +250,10 @@ def _dispatch(args, comm) -> int:
     if args.command == "check":
         from .meshing import build_domain
         check_petsc_options(scene.solver)
-        build_domain(scene, comm)
+        dom = build_domain(scene, comm)
         if comm.rank == 0:
+            for w in dom.warnings:
+                print(f"{args.scene}: warning: {w}")
             print(f"{args.scene}: OK")
         return 0
     from .run import solve
