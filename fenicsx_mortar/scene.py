@@ -719,8 +719,13 @@ _MUMPS_STREAMS = ("-mat_mumps_icntl_1", "-mat_mumps_icntl_2", "-mat_mumps_icntl_
 def load_scene(path: str | Path) -> Scene:
     """Read and validate a scene file. Raises SceneError with the file and key named."""
     path = Path(path)
+    text = read_text(path, "scene file")
     try:
-        data = tomllib.loads(read_text(path, "scene file"))
+        _toml_prescan(text)
+    except SceneError as e:
+        raise SceneError(f"{path}: {e}") from None
+    try:
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise SceneError(f"{path}: TOML syntax error: {e}") from None
     except RecursionError:
@@ -789,6 +794,75 @@ def load_scene_json(path: str | Path) -> Scene:
 
 
 _TOO_DEEP = f"tables and lists nested more than {MAX_DEPTH} levels deep"
+#: the characters that neither end a dotted key nor matter to the scan
+_SIGNIFICANT = re.compile(r"[^A-Za-z0-9_\- \t]")
+
+
+def _toml_prescan(text: str) -> None:
+    """Bound the nesting of a TOML text before tomllib reads it: tomllib recurses per
+    bracket (50 000 of them: RecursionError) and is quadratic in a dotted key's parts
+    (``a.a.a…`` 50 000 times: a minute and 8 GiB). Brackets and braces open at once, and
+    the parts of one dotted key, outside strings and comments, at most MAX_DEPTH (a float's
+    one dot ends at the next comma or bracket). Raises SceneError."""
+    depth = run = 0
+    i, n = 0, len(text)
+    while True:
+        m = _SIGNIFICANT.search(text, i)
+        if m is None:
+            return
+        i, c = m.start(), m.group()
+        if c == "#":
+            j = text.find("\n", i)
+            i = n if j < 0 else j
+            continue
+        if c in "\"'":
+            i = _skip_string(text, i)     # a quoted key part keeps the dotted key going
+            continue
+        if c == ".":
+            run += 1
+            if run > MAX_DEPTH:
+                raise SceneError(f"a dotted key of more than {MAX_DEPTH} parts "
+                                 f"({_TOO_DEEP})")
+        else:
+            run = 0
+            if c in "[{":
+                depth += 1
+                if depth > MAX_DEPTH:
+                    raise SceneError(_TOO_DEEP)
+            elif c in "]}":
+                depth = max(depth - 1, 0)
+        i += 1
+
+
+def _skip_string(text: str, i: int) -> int:
+    """The index after the TOML string that starts at ``i`` (basic or literal, one-line or
+    multi-line; an unclosed one runs to its line's or the text's end: tomllib reports it)."""
+    q = text[i]
+    if text.startswith(q * 3, i):
+        j = i + 3
+        while True:
+            k = text.find(q * 3, j)
+            if k < 0:
+                return len(text)
+            b = k
+            while b > j and text[b - 1] == "\\":
+                b -= 1
+            escaped = q == '"' and (k - b) % 2 == 1
+            if not escaped:
+                while text.startswith(q, k + 3):     # up to two quotes end the content
+                    k += 1
+                return k + 3
+            j = k + 1
+    j = i + 1
+    while j < len(text):
+        ch = text[j]
+        if ch == "\\" and q == '"':
+            j += 2
+            continue
+        if ch == q or ch == "\n":
+            return j + (ch == q)
+        j += 1
+    return j
 
 
 def _check_depth(data, limit: int = MAX_DEPTH) -> None:
