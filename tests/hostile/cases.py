@@ -844,6 +844,8 @@ add(
                 mode="mpi", ranks=2),
     script_case("mpi_mesh_opt_as_mesh", "mesh.opt", TOUCH, "gmsh script", mode="mpi",
                 ranks=2),
+    mesh_case("mpi_mesh_cells_outside_groups", "no physical surface group", "save_all.msh",
+              mode="mpi", ranks=2),
 )
 
 # -- physics guards -----------------------------------------------------------------------
