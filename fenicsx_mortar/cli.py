@@ -26,6 +26,9 @@ from pathlib import Path
 
 #: PETSc reads options from these variables at start-up; the run ignores them
 PETSC_VARIABLES = ("PETSC_OPTIONS", "PETSC_OPTIONS_YAML")
+#: JIT settings DOLFINx and FFCx read from the working directory (0.5 and 0.9 names)
+JIT_SETTINGS_FILES = ("dolfinx_jit_parameters.json", "dolfinx_jit_options.json",
+                      "ffcx_parameters.json", "ffcx_options.json")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -161,6 +164,10 @@ class _TolerantStream(io.TextIOBase):
     @property
     def encoding(self):
         return getattr(self._stream, "encoding", None)
+
+    @property
+    def buffer(self):
+        return self._stream.buffer
 
     @property
     def errors(self):
@@ -306,12 +313,21 @@ def _locked(out: Path, comm, key: str):
 def _check_jit_cache(comm) -> None:
     """The JIT (FFCx's compiled forms) must find its settings and a cache directory this
     process can write (every rank): else the compile fails deep inside DOLFINx with a
-    traceback. Raises RunError naming the place and the variable that sets it."""
+    traceback. No settings file in the working directory: it would set compiler flags
+    (code run by the compiler) or put the cache anywhere. Raises RunError naming the place
+    and the variable that sets it."""
     from . import _dolfinx as dx
     from .parallel import RunError, agree
 
     def probe() -> None:
         import tempfile
+        here = [n for n in JIT_SETTINGS_FILES if Path(n).exists()]
+        if here:
+            raise RunError(f"{Path.cwd() / here[0]}: DOLFINx and FFCx read their JIT settings "
+                           "(compiler flags, the cache's place, the number type) from a file "
+                           "of this name in the working directory; the command line does not "
+                           "run with one: remove it or run elsewhere (settings in "
+                           "XDG_CONFIG_HOME are yours and are kept)")
         try:
             cache = Path(dx.jit_cache_dir())
         except OSError as e:     # its settings file (~/.config/dolfinx/...) is unreadable

@@ -1381,6 +1381,14 @@ add(
              prepare=write("homefile", b"x")),
     env_case("env_config_home_a_file", 1, "XDG_CONFIG_HOME",
              {"XDG_CONFIG_HOME": "{dir}/cfgfile"}, prepare=write("cfgfile", b"x")),
+    # DOLFINx and FFCx read JIT settings from the working directory: the cache put outside
+    # --out, the number type changed
+    env_case("env_jit_settings_in_work_dir", 1, "dolfinx_jit_parameters.json", {},
+             prepare=write("work/dolfinx_jit_parameters.json",
+                           b'{"cache_dir": "../elsewhere-cache"}'), hazard="unchecked"),
+    env_case("env_ffcx_settings_in_work_dir", 1, "ffcx_parameters.json", {},
+             prepare=write("work/ffcx_parameters.json", b'{"scalar_type": "float"}'),
+             hazard="unchecked"),
     petsc_env_case("mpi_env_petsc_options", "PETSC_OPTIONS",
                    {"PETSC_OPTIONS": "-log_view :../x"}, mode="mpi", ranks=2),
 )
