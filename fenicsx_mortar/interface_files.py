@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from .contact.output import interface_table
-from .output import write_atomic
+from .output import save_figure, write_file
 
 
 def write_interface(pair, out: Path, step: int) -> None:
@@ -17,7 +17,7 @@ def write_interface(pair, out: Path, step: int) -> None:
     lines = [",".join(cols)]
     for row in zip(*(d[c] for c in cols)):
         lines.append(",".join(f"{v:.12g}" if isinstance(v, float) else str(v) for v in row))
-    write_atomic(out / "interface" / f"{pair.name}_{step:04d}.csv", "\n".join(lines) + "\n")
+    write_file(out, f"interface/{pair.name}_{step:04d}.csv", "\n".join(lines) + "\n")
 
 
 def plot_pressure(pair, out: Path) -> None:
@@ -41,6 +41,7 @@ def plot_pressure(pair, out: Path) -> None:
     ax.set_title(f"{pair.name}: pressure at the last converged step")
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    (out / "interface").mkdir(parents=True, exist_ok=True)
-    fig.savefig(out / "interface" / f"{pair.name}_pressure.png", dpi=120)
-    plt.close(fig)
+    try:
+        save_figure(fig, out, f"interface/{pair.name}_pressure.png")
+    finally:
+        plt.close(fig)

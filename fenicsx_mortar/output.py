@@ -1,24 +1,33 @@
 """Run outputs: summary.json (atomic), solution.xdmf, PNG plots. Rank 0 writes files.
 
-Every file goes under the output directory (``--out``): names that become file names are
-checked by the scene (contact pairs), and the directory is checked before meshing
-(:func:`prepare_out`). A failed write raises OSError naming the file; the run stops
-with a message naming the disk (:func:`write_failure`), and what converged before is kept
-(atomic writes leave the last good file and no temporary one).
+Every file goes under the output directory (``--out``) and through :func:`write_file`,
+which opens it directory by directory from ``--out`` without following a symbolic link
+(a link inside ``--out`` is replaced by the file, or refused where it stands for a
+directory), so no write can land outside. The directory is checked before meshing
+(:func:`prepare_out`) and locked for the run (:func:`locked`): a second run into it is
+refused. A failed write raises OSError naming the file; the run stops with a message
+naming the disk (:func:`write_failure`), and what converged before is kept (atomic writes
+leave the last good file and no temporary one).
 """
 from __future__ import annotations
 
+import contextlib
 import errno
+import fcntl
+import io
 import json
 import os
 import re
+import secrets
+import stat
 import tempfile
 from glob import escape as glob_escape
-from pathlib import Path
+from pathlib import Path, PurePosixPath
+from typing import Iterator
 
 import numpy as np
 
-from .scene import SceneError
+from .scene import SceneError, json_loads
 
 
 def prepare_out(out: Path) -> None:
@@ -27,6 +36,7 @@ def prepare_out(out: Path) -> None:
     key = f"--out {out}"
     if out.exists() and not out.is_dir():
         raise SceneError(f"{key}: exists and is not a directory")
+    _refuse_linked_dirs(out, key)
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as e:
@@ -58,7 +68,7 @@ def clear_previous(out: Path) -> int:
     folder = out / "interface"
     if folder.is_dir() and not folder.is_symlink():
         try:
-            names = [c["name"] for c in json.loads((out / "scene.json").read_text())
+            names = [c["name"] for c in json_loads((out / "scene.json").read_text())
                      .get("contacts", [])]
         except (OSError, ValueError, TypeError, KeyError, AttributeError):
             names = []      # no readable record of its pairs: their files stay
@@ -78,24 +88,125 @@ def clear_previous(out: Path) -> int:
     return removed
 
 
-def write_atomic(path: Path, data: str | bytes) -> None:
-    """Write via a temporary file and rename, so a reader never sees half a file and a
-    failed write (a full disk) leaves the previous file and no temporary one. Raises
-    OSError with ``filename`` = path."""
+#: the directories a run writes into inside ``--out``
+OWN_DIRS = ("interface",)
+_DIR_FLAGS = os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW | os.O_CLOEXEC
+
+
+def _refuse_linked_dirs(out: Path, key: str) -> None:
+    """A directory the run writes into that is a symbolic link (or not a directory): the
+    outputs would go where it points; refused by name before anything is written."""
+    for name in OWN_DIRS:
+        p = out / name
+        if p.is_symlink():
+            raise SceneError(f"{key}: {name} is a symbolic link (to {os.readlink(p)}); a run "
+                             "writes into its own directories, never through a link: remove "
+                             "it")
+        if p.exists() and not p.is_dir():
+            raise SceneError(f"{key}: {name} exists and is not a directory; remove it")
+
+
+def _parts(rel: str | Path) -> tuple[str, ...]:
+    parts = PurePosixPath(rel).parts
+    if not parts or PurePosixPath(rel).is_absolute() or any(
+            p in ("", ".", "..") or "\x00" in p for p in parts):
+        raise ValueError(f"{rel!r}: not a plain relative path inside the output directory")
+    return parts
+
+
+def write_file(out: Path, rel: str | Path, data: str | bytes) -> Path:
+    """Write ``out/rel`` (the one way a run writes a file). The directories from ``out``
+    on are opened one by one without following links (a link to a directory is refused:
+    ELOOP or ENOTDIR), missing ones made; the bytes go to a temporary file beside the
+    target, renamed over it, so a reader never sees half a file, a failed write (a full
+    disk) leaves the previous file and no temporary one, and a link at the target's
+    place is replaced, not followed. ``out`` itself may be a link (the user's choice of
+    place). Raises OSError with ``filename`` = ``out/rel``; returns that path."""
+    parts = _parts(rel)
+    path = Path(out, *parts)
+    payload = data.encode() if isinstance(data, str) else bytes(data)
+    fds: list[int] = []
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
+        try:
+            fds.append(os.open(out, os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC))
+            for name in parts[:-1]:
+                with contextlib.suppress(FileExistsError):
+                    os.mkdir(name, dir_fd=fds[-1])
+                fds.append(os.open(name, _DIR_FLAGS, dir_fd=fds[-1]))
+        except OSError as e:
+            why = "a symbolic link or not a directory on the way (outputs are never " \
+                "written through a link)" if e.errno in (errno.ELOOP, errno.ENOTDIR) \
+                else e.strerror
+            raise OSError(e.errno, why, str(path)) from None
+        _write_in(fds[-1], parts[-1], payload, path)
+    finally:
+        for fd in fds:
+            os.close(fd)
+    return path
+
+
+def _write_in(dir_fd: int, name: str, payload: bytes, path: Path) -> None:
+    tmp = f".{name}.{secrets.token_hex(4)}"
+    try:
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC,
+                     0o666, dir_fd=dir_fd)
     except OSError as e:
         raise OSError(e.errno, e.strerror, str(path)) from None
     try:
-        with os.fdopen(fd, "wb" if isinstance(data, bytes) else "w") as f:
-            f.write(data)
-        os.replace(tmp, path)
+        with os.fdopen(fd, "wb") as f:
+            f.write(payload)
+        os.replace(tmp, name, src_dir_fd=dir_fd, dst_dir_fd=dir_fd)
     except BaseException as e:
-        os.unlink(tmp)
+        with contextlib.suppress(OSError):
+            os.unlink(tmp, dir_fd=dir_fd)
         if isinstance(e, OSError):
             raise OSError(e.errno, e.strerror, str(path)) from None
         raise
+
+
+def path_for(out: Path, rel: str | Path) -> Path:
+    """The path of ``out/rel`` for a library that opens it by name itself (HDF5): its
+    directories are checked as :func:`write_file` does, and a symbolic link at its place
+    (for ``.xdmf``, also at its ``.h5``) removed: the library would write through it.
+    Raises OSError naming the path."""
+    parts = _parts(rel)
+    path = Path(out, *parts)
+    d = Path(out)
+    for name in parts[:-1]:
+        d = d / name
+        if d.is_symlink() or (d.exists() and not d.is_dir()):
+            raise OSError(errno.ELOOP, "a symbolic link or not a directory on the way "
+                          "(outputs are never written through a link)", str(path))
+        with contextlib.suppress(FileExistsError):
+            d.mkdir()
+    for p in (path, path.with_suffix(".h5")) if path.suffix == ".xdmf" else (path,):
+        with contextlib.suppress(FileNotFoundError):   # every rank may try
+            if stat.S_ISLNK(os.lstat(p).st_mode):
+                os.unlink(p)
+    return path
+
+
+@contextlib.contextmanager
+def locked(out: Path, key: str = "--out") -> Iterator[None]:
+    """Hold ``out``'s lock (an exclusive ``flock`` on the directory itself: no file is
+    left behind, and the kernel drops it when the process ends, however it ends) for the
+    run; a directory another run holds is refused by name (SceneError)."""
+    try:
+        fd = os.open(out, os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC)
+    except OSError as e:
+        raise SceneError(f"{key} {out}: cannot open the directory ({e.strerror})") from None
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise SceneError(f"{key} {out}: another run is writing there (it holds the "
+                             "directory's lock); wait for it to end or choose another "
+                             "directory") from None
+        except OSError:
+            pass        # a file system without locks (some network mounts): unlocked
+        yield
+    finally:
+        os.close(fd)
 
 
 def write_failure(out: Path, e: OSError, kept: str) -> str:
@@ -124,7 +235,15 @@ def _mount_point(path: Path) -> Path:
 
 
 def write_summary(out: Path, summary: dict) -> None:
-    write_atomic(out / "summary.json", json.dumps(summary, indent=1, default=_jsonable) + "\n")
+    write_file(out, "summary.json", json.dumps(summary, indent=1, default=_jsonable) + "\n")
+
+
+def save_figure(fig, out: Path, rel: str) -> Path:
+    """A matplotlib figure as PNG through :func:`write_file` (savefig would follow a link
+    at the path)."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=120)
+    return write_file(out, rel, buf.getvalue())
 
 
 def _jsonable(o):
@@ -153,10 +272,10 @@ def plot_reactions(out: Path, steps: list[dict]) -> Path | None:
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
     fig.tight_layout()
-    path = out / "reactions.png"
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    try:
+        return save_figure(fig, out, "reactions.png")
+    finally:
+        plt.close(fig)
 
 
 def plot_convergence(out: Path, steps: list[dict]) -> Path | None:
@@ -177,7 +296,7 @@ def plot_convergence(out: Path, steps: list[dict]) -> Path | None:
     if len(steps) <= 10:
         ax.legend(fontsize=7)
     fig.tight_layout()
-    path = out / "convergence.png"
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    try:
+        return save_figure(fig, out, "convergence.png")
+    finally:
+        plt.close(fig)

@@ -104,6 +104,8 @@ def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM
         log(f"  effect: {e}")
 
     dom, bulk, stress, pairs = build(scene, comm, timings)
+    for w in dom.warnings:
+        log(f"  warning: {w}")
     fingerprints = (checkpoint.scene_fingerprint(scene_to_json(scene)),
                     checkpoint.mesh_fingerprint(dom, comm))
     t0, k0, steps = 0.0, 0, []
@@ -123,7 +125,7 @@ def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM
 
     summary = {"title": scene.title, "converged": False, "message": "running",
                "effects": scene.effects(), "dofs": ndofs, "ranks": comm.size,
-               "steps": steps, "timings": timings, "warnings": []}
+               "steps": steps, "timings": timings, "warnings": list(dom.warnings)}
     outputs = _Outputs(scene, out, comm, bulk, stress, pairs, fingerprints, (k0, t0), restart,
                        timings, log) if out is not None else None
     recorder = _StepRecorder(scene, dom, bulk, stress, pairs, problem, steps, summary,
@@ -273,14 +275,14 @@ class _Outputs:
             cleared = on_rank0(comm, lambda: output.clear_previous(out))
             if cleared:
                 log(f"  removed {cleared} files of a previous run in {out}")
-            _write(out, comm, self.kept, lambda: output.write_atomic(
-                out / "scene.json", scene_to_json(scene)), rank0_only=True)
+            _write(out, comm, self.kept, lambda: output.write_file(
+                out, "scene.json", scene_to_json(scene)), rank0_only=True)
         with timings("output"):
             if scene.output.xdmf:
                 # a restart continues in its own file: XDMF cannot be reopened for appending
                 name = f"solution_from_step_{k0}.xdmf" if restart else "solution.xdmf"
                 self.writer = _xdmf(out, self.kept, lambda: dx.XDMFWriter(
-                    comm, str(out / name), bulk.domain.mesh))
+                    comm, str(output.path_for(out, name)), bulk.domain.mesh))
                 stress.update()
                 _xdmf(out, self.kept, lambda: self.writer.write([bulk.u, stress.sigma], t0))
 

@@ -26,6 +26,12 @@ from .settings import SolverSettings
 LIMITS = {"cells": 1_000_000, "steps": 100_000, "max_cuts": 50, "n_gauss": 16,
           "quadrature_degree": 16, "max_iterations": 1000, "max_augmentations": 1000,
           "scene_bytes": 8 << 20}
+#: the largest size of any number of a scene: products of two stay far from the largest float
+#: (1.8e308); no physical quantity in any units comes near it
+MAGNITUDE = 1e100
+#: the deepest nesting of tables and lists in a scene file or a saved scene (a scene needs 4:
+#: contacts[0].enforcement.epsilon); deeper input is refused before Python's recursion is
+MAX_DEPTH = 32
 #: names that become file names or labels (contact pairs, supports)
 NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.+-]{0,63}")
 
@@ -264,13 +270,15 @@ class Scene:
     # ------------------------------------------------------------------ validation
     def validate(self) -> "Scene":
         """Semantic checks that do not need the mesh; raise SceneError naming the key.
-        Every float must be finite (TOML has nan and inf), every number lie in its range
+        Every float must be finite (TOML has nan and inf) and at most MAGNITUDE in size, as
+        every load or prescribed value times its curve; every number lie in its range
         (docs/scenes.md), and the numbers that drive memory or time have upper bounds
         (LIMITS; the cell count of a generator's mesh is estimated before meshing)."""
         _check_finite(self, "")
         self._check_mesh()
         self._check_bodies()
         self._check_curves()
+        self._check_scaled()
         self._check_loads()
         self._check_dirichlet()
         self._check_contacts()
@@ -331,6 +339,33 @@ class Scene:
                 if item.curve != "ramp" and item.curve not in self.curves:
                     raise SceneError(f"{kind}[{i}].curve = {item.curve!r}: no such curve "
                                      f"(define [curves.{item.curve}])")
+
+    def _check_scaled(self) -> None:
+        """A value times its curve (piecewise linear: its largest point) within MAGNITUDE:
+        each alone may be, their product overflow later (six cuts naming no key)."""
+        def check(value, curve: str, key: str) -> None:
+            c = self.curve(curve) if curve == "ramp" or curve in self.curves else None
+            if c is None or not value:
+                return
+            k = max(range(len(c.value)), key=lambda j: abs(c.value[j]))
+            if not abs(value) * abs(c.value[k]) <= MAGNITUDE:
+                where = "the ramp" if c is RAMP else f"curves.{curve}.value[{k}]"
+                raise SceneError(f"{key} = {value:g} times {where} = {c.value[k]:g}: beyond "
+                                 f"{MAGNITUDE:g} in size (the solve's products would overflow)")
+        for i, p in enumerate(self.pressures):
+            check(p.value, p.curve, f"pressures[{i}].value")
+        for i, t in enumerate(self.tractions):
+            for j, v in enumerate(t.value):
+                check(v, t.curve, f"tractions[{i}].value[{j}]")
+        for i, d in enumerate(self.dirichlet):
+            for c in ("x", "y"):
+                if getattr(d, c) is not None:
+                    check(getattr(d, c), d.curve, f"dirichlet[{i}].{c}")
+            if d.motion is not None:
+                m = d.motion
+                for j, v in enumerate(m.translation):
+                    check(v, m.translation_curve, f"dirichlet[{i}].motion.translation[{j}]")
+                check(m.rotation, m.rotation_curve, f"dirichlet[{i}].motion.rotation")
 
     def _check_loads(self) -> None:
         for kind, items in (("pressures", self.pressures), ("tractions", self.tractions)):
@@ -536,10 +571,15 @@ def _unique(names: list[str], key: str) -> None:
 
 
 def _check_finite(obj, key: str) -> None:
-    """Every float anywhere in the scene (lists and tables included) is finite: TOML and
-    Python have nan and inf, and they would otherwise reach the solver as loads or sizes."""
+    """Every float anywhere in the scene (lists and tables included) is finite and at most
+    MAGNITUDE in size: TOML and Python have nan and inf, and they would otherwise reach the
+    solver as loads or sizes; E = 1e308 overflowed in the first assembly (NaN, six cuts)."""
     if isinstance(obj, float) and not math.isfinite(obj):
         raise SceneError(f"{key} = {obj}: must be a finite number")
+    # PETSc's own settings are PETSc's to bound (-pc_factor_zeropivot 1e300 is one)
+    if isinstance(obj, float) and abs(obj) > MAGNITUDE and not key.startswith("solver.petsc"):
+        raise SceneError(f"{key} = {obj:g}: beyond {MAGNITUDE:g} in size (the solve's "
+                         "products, stiffness times strain, would overflow)")
     if dataclasses.is_dataclass(obj):
         for f in dataclasses.fields(obj):
             if f.name != "base_dir":
@@ -667,11 +707,19 @@ _MUMPS_STREAMS = ("-mat_mumps_icntl_1", "-mat_mumps_icntl_2", "-mat_mumps_icntl_
 def load_scene(path: str | Path) -> Scene:
     """Read and validate a scene file. Raises SceneError with the file and key named."""
     path = Path(path)
+    text = read_text(path, "scene file")
     try:
-        data = tomllib.loads(read_text(path, "scene file"))
+        _toml_prescan(text)
+    except SceneError as e:
+        raise SceneError(f"{path}: {e}") from None
+    try:
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise SceneError(f"{path}: TOML syntax error: {e}") from None
+    except RecursionError:
+        raise SceneError(f"{path}: {_TOO_DEEP}") from None
     try:
+        _check_depth(data)
         _check_unused(data)
         scene = from_dict(Scene, data, "")
         scene.base_dir = str(path.resolve().parent)
@@ -717,10 +765,9 @@ def read_text(path: Path, what: str) -> str:
 
 def load_scene_json(path: str | Path) -> Scene:
     """A scene saved by a run (``DIR/scene.json``), for restarts."""
-    import json
     path = Path(path)
     try:
-        data = json.loads(read_text(path, "saved scene"))
+        data = json_loads(read_text(path, "saved scene"))
     except ValueError as e:
         raise SceneError(f"{path}: cannot read the saved scene ({e})") from None
     if not isinstance(data, dict):
@@ -732,6 +779,108 @@ def load_scene_json(path: str | Path) -> Scene:
         return scene.validate()
     except SceneError as e:
         raise SceneError(f"{path}: {e}") from None
+
+
+_TOO_DEEP = f"tables and lists nested more than {MAX_DEPTH} levels deep"
+#: the characters that neither end a dotted key nor matter to the scan
+_SIGNIFICANT = re.compile(r"[^A-Za-z0-9_\- \t]")
+
+
+def _toml_prescan(text: str) -> None:
+    """Bound the nesting of a TOML text before tomllib reads it: tomllib recurses per
+    bracket (50 000 of them: RecursionError) and is quadratic in a dotted key's parts
+    (``a.a.a…`` 50 000 times: a minute and 8 GiB). Brackets and braces open at once, and
+    the parts of one dotted key, outside strings and comments, at most MAX_DEPTH (a float's
+    one dot ends at the next comma or bracket). Raises SceneError."""
+    depth = run = 0
+    i, n = 0, len(text)
+    while True:
+        m = _SIGNIFICANT.search(text, i)
+        if m is None:
+            return
+        i, c = m.start(), m.group()
+        if c == "#":
+            j = text.find("\n", i)
+            i = n if j < 0 else j
+            continue
+        if c in "\"'":
+            i = _skip_string(text, i)     # a quoted key part keeps the dotted key going
+            continue
+        if c == ".":
+            run += 1
+            if run > MAX_DEPTH:
+                raise SceneError(f"a dotted key of more than {MAX_DEPTH} parts "
+                                 f"({_TOO_DEEP})")
+        else:
+            run = 0
+            if c in "[{":
+                depth += 1
+                if depth > MAX_DEPTH:
+                    raise SceneError(_TOO_DEEP)
+            elif c in "]}":
+                depth = max(depth - 1, 0)
+        i += 1
+
+
+def _skip_string(text: str, i: int) -> int:
+    """The index after the TOML string that starts at ``i`` (basic or literal, one-line or
+    multi-line; an unclosed one runs to its line's or the text's end: tomllib reports it)."""
+    q = text[i]
+    if text.startswith(q * 3, i):
+        j = i + 3
+        while True:
+            k = text.find(q * 3, j)
+            if k < 0:
+                return len(text)
+            b = k
+            while b > j and text[b - 1] == "\\":
+                b -= 1
+            escaped = q == '"' and (k - b) % 2 == 1
+            if not escaped:
+                while text.startswith(q, k + 3):     # up to two quotes end the content
+                    k += 1
+                return k + 3
+            j = k + 1
+    j = i + 1
+    while j < len(text):
+        ch = text[j]
+        if ch == "\\" and q == '"':
+            j += 2
+            continue
+        if ch == q or ch == "\n":
+            return j + (ch == q)
+        j += 1
+    return j
+
+
+def _check_depth(data, limit: int = MAX_DEPTH) -> None:
+    """Nesting of tables and lists at most ``limit`` deep (without recursion); raises
+    SceneError naming the key where it goes deeper."""
+    stack = [(data, 0, "")]
+    while stack:
+        node, depth, key = stack.pop()
+        if isinstance(node, (dict, list)):
+            if depth > limit:
+                top = re.split(r"[.\[]", key.lstrip("."), maxsplit=1)[0] or "scene"
+                raise SceneError(f"{top}: {_TOO_DEEP}")
+            items = node.items() if isinstance(node, dict) else enumerate(node)
+            stack.extend((v, depth + 1, f"{key}.{k}" if isinstance(node, dict) else f"{key}[{k}]")
+                         for k, v in items)
+
+
+def json_loads(text: str):
+    """``json.loads`` of input (a saved scene, a checkpoint's records) with the nesting
+    bounded (MAX_DEPTH): ValueError, JSON's own error, for anything else."""
+    import json
+    try:
+        data = json.loads(text)
+    except RecursionError:
+        raise ValueError(_TOO_DEEP) from None
+    try:
+        _check_depth(data)
+    except SceneError as e:
+        raise ValueError(str(e)) from None
+    return data
 
 
 def from_dict(cls, data: dict, path: str):

@@ -103,11 +103,18 @@ def run_process(case: Case, d: Path, donors: Donors, env: dict | None = None,
     case.write_inputs(d, donors)
     before = files_under(d)
     env = {**(env or os.environ), **MPI_ENV, "PYTHONUNBUFFERED": "1",
-           **{k: v.format(dir=d) for k, v in case.env.items()}}
+           **{k: v if v is None else v.format(dir=d) for k, v in case.env.items()}}
+    env = {k: v for k, v in env.items() if v is not None}      # None: unset
+    # a case's stdout may be a file (/dev/full: every write fails)
+    stdout = open(case.stdout, "w") if case.stdout else subprocess.PIPE
     t0 = time.time()
-    proc = subprocess.Popen(command(case, d), cwd=d / "work", env=env, text=True,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            start_new_session=True, preexec_fn=_limit_memory)
+    try:
+        proc = subprocess.Popen(command(case, d), cwd=d / "work", env=env, text=True,
+                                stdout=stdout, stderr=subprocess.PIPE,
+                                start_new_session=True, preexec_fn=_limit_memory)
+    finally:
+        if case.stdout:
+            stdout.close()
     seen = ""
     try:
         if case.sender is not None:
@@ -119,6 +126,7 @@ def run_process(case: Case, d: Path, donors: Donors, env: dict | None = None,
         os.killpg(proc.pid, 9)
         out, err = proc.communicate()
         code = None
+    out = out or ""
     try:
         o = Outcome(code, seen + out, err, time.time() - t0, stray(d, before), d)
         o.problem = problem(case, o)
