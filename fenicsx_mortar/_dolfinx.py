@@ -32,6 +32,10 @@ api = select(VERSION)
 
 Mesh = dmesh.Mesh
 Function = fem.Function
+#: types for annotations (0.5 names some of them ...MetaClass)
+FunctionSpace = fem.FunctionSpace
+MeshTags = getattr(dmesh, "MeshTags", None) or getattr(dmesh, "MeshTagsMetaClass")
+Form = getattr(fem, "Form", None) or getattr(fem.forms, "FormMetaClass")
 ScalarType = PETSc.ScalarType
 
 
@@ -313,6 +317,23 @@ def bc_dofs(bcs) -> np.ndarray:
     """Local unrolled dof indices constrained by the Dirichlet conditions."""
     out = [bc.dof_indices()[0] for bc in bcs]
     return np.unique(np.concatenate(out)) if out else np.zeros(0, dtype=np.int32)
+
+
+def bc_values(bcs, V) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Per Dirichlet condition on V, its owned (unrolled) dofs and the values it prescribes
+    there now."""
+    f = fem.Function(V)
+    vec = api.petsc_vec(f)
+    n_owned = owned_dof_count(V)
+    out = []
+    for bc in bcs:
+        with vec.localForm() as loc:
+            loc.set(0.0)
+        api.set_bc(vec, [bc], None, 1.0)
+        dofs = bc.dof_indices()[0]
+        dofs = dofs[dofs < n_owned]
+        out.append((dofs, vec.array_r[dofs].copy()))
+    return out
 
 
 def expression(expr, V) -> fem.Expression:

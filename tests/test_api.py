@@ -308,3 +308,24 @@ def test_the_command_line_reaches_the_solver_under_its_prefix(tmp_path):
                           timeout=300)
     assert "REASON Newton failed: DIVERGED_MAX_IT after 1 iterations" in proc.stdout, \
         proc.stdout[-2000:] + proc.stderr[-2000:]
+
+
+def test_two_supports_with_two_values_for_one_dof_are_refused():
+    """Two conditions sharing the corner (0, 0): y = 0 on the bottom and y = 0.1 on the
+    left side. DOLFINx would apply one silently; the solve refuses, naming both."""
+    msh = dx.unit_square(MPI.COMM_WORLD, 2, 2)
+    V = dx.vector_space(msh)
+    u, v = dx.Function(V), ufl.TestFunction(V)
+    F = ufl.inner(ufl.grad(u), ufl.grad(v)) * ufl.dx(domain=msh)
+    bottom = dx.locate_vertices(msh, lambda X: np.isclose(X[1], 0.0))
+    left = dx.locate_vertices(msh, lambda X: np.isclose(X[0], 0.0))
+    zero, lift = dx.constant(msh, 0.0), dx.constant(msh, 0.1)
+    bcs = [dx.dirichletbc(zero, dx.vertex_dofs(V, 1, bottom), V, 1),
+           dx.dirichletbc(zero, dx.vertex_dofs(V, 0, left), V, 0),
+           dx.dirichletbc(lift, dx.vertex_dofs(V, 1, left), V, 1)]
+    with fm.ContactProblem(F, u, bcs, petsc_options_prefix="bc_") as problem:
+        with pytest.raises(ValueError, match=r"bcs\[0\] and bcs\[2\] prescribe different "
+                                             r"values, 0 and 0.1, to the y component at \(0, 0\)"):
+            problem.solve()
+        lift.value = 0.0                 # one value again: solves
+        assert problem.solve().converged

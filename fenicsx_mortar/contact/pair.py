@@ -13,7 +13,7 @@ inserted by the rank that owns its dofs, so every term enters the global system 
 from __future__ import annotations
 
 import warnings
-from typing import TYPE_CHECKING, Mapping, Sequence
+from typing import Mapping, Sequence
 
 import numpy as np
 from mpi4py import MPI
@@ -28,10 +28,6 @@ from .registry import ENFORCEMENTS, FRICTION_LAWS, METHODS, SMOOTHINGS
 from .search import candidate_pairs, search_once
 from .state import ContactState
 from .surface import Surface, build_surface
-
-if TYPE_CHECKING:
-    from dolfinx.fem import FunctionSpace
-    from dolfinx.mesh import MeshTags
 
 
 class ContactPair:
@@ -73,13 +69,13 @@ class ContactPair:
         ValueError: an argument out of its range or not among its choices, named.
     """
 
-    def __init__(self, V: FunctionSpace, facet_tags: MeshTags, slave: int | Sequence[int],
+    def __init__(self, V: dx.FunctionSpace, facet_tags: dx.MeshTags, slave: int | Sequence[int],
                  master: int | Sequence[int],
                  *, name: str = "contact", method: str = "mortar", smoothing: str = "none",
                  enforcement: str = "lagrange", epsilon: float | None = None,
                  tolerance: float = 1e-10, friction: str = "none", mu: float | None = None,
                  E: float | Mapping[int, float] | None = None,
-                 cell_tags: MeshTags | None = None, n_gauss: int | None = None,
+                 cell_tags: dx.MeshTags | None = None, n_gauss: int | None = None,
                  search_radius: float | None = None, basis: str | None = None,
                  slave_smoothing: str = "none"):
         self.name = name
