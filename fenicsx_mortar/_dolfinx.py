@@ -1,11 +1,13 @@
-"""Every DOLFINx call of the package, on DOLFINx 0.5 (Debian 12) and 0.9 (Debian 13).
+"""Every DOLFINx call of the package, on DOLFINx 0.5 (Debian 12), 0.9 (Debian 13), 0.10 and
+0.11 (PyPI's ``dolfinx-solver-real``).
 
 The rest of the package (and the tests and benchmarks) calls DOLFINx only through this
 module. Written against the DOLFINx 0.9 API: what is spelled differently in another
-version is one function of ``_dolfinx_versions`` (``api`` below: ``v0_9`` or ``v0_5``,
-picked by ``dolfinx.__version__``); the calls made here directly are the same in 0.5 to
-0.11 (docs/dolfinx-versions.md). Array shapes are 0.9's: the geometry and dof maps are
-(num_cells, k) arrays.
+version is one function of ``_dolfinx_versions`` (``api`` below: ``v0_5``, ``v0_9``,
+``v0_10`` or ``v0_11``, picked by ``dolfinx.__version__``); the calls made here directly are
+the same in 0.5 to 0.11 (docs/dolfinx-versions.md), and petsc4py's renamings are feature
+tests here (``SNES_DIVERGED_NAN``, ``LINE_SEARCH_SECANT``). Array shapes are 0.9's: the
+geometry and dof maps are (num_cells, k) arrays.
 """
 from __future__ import annotations
 
@@ -13,12 +15,15 @@ import ctypes
 import errno
 import logging
 
+# mpi4py.MPI first: the PyPI wheel's petsc4py and DOLFINx find MPICH's libmpi.so.12 only
+# once mpi4py has loaded it
+from mpi4py import MPI  # isort: skip
+
 import dolfinx
 import numpy as np
 import ufl
 from dolfinx import fem, io, mesh as dmesh
 from dolfinx.fem import petsc as fpetsc
-from mpi4py import MPI
 from petsc4py import PETSc
 
 from ._dolfinx_versions import select
@@ -33,6 +38,16 @@ api = select(VERSION)
 Mesh = dmesh.Mesh
 Function = fem.Function
 ScalarType = PETSc.ScalarType
+
+_REASON = PETSc.SNES.ConvergedReason
+#: SNES's reason for a residual norm that is NaN or infinite (petsc4py 3.25 renamed
+#: DIVERGED_FNORM_NAN)
+SNES_DIVERGED_NAN = (_REASON.DIVERGED_FUNCTION_NANORINF
+                     if hasattr(_REASON, "DIVERGED_FUNCTION_NANORINF")
+                     else _REASON.DIVERGED_FNORM_NAN)
+#: PETSc's name of the secant line search on ‖F‖² that 3.24 renamed from "l2" ("l2" now
+#: names another algorithm)
+LINE_SEARCH_SECANT = "secant" if PETSc.Sys.getVersion() >= (3, 24, 0) else "l2"
 
 
 def model_to_mesh(model, comm: MPI.Comm, rank: int = 0):

@@ -12,11 +12,13 @@ The problem solves F(u) + contact = 0 with PETSc SNES (``problem.snes``; options
         traction.value = load
         result = problem.solve()         # Newton (+ ALM augmentations) at this load
         print(result.converged, pair.record())
+    problem.close()                      # or: with ContactProblem(...) as problem:
 
 The scene runner (:func:`fenicsx_mortar.solve`) is a client of this class.
 """
 from __future__ import annotations
 
+import weakref
 from typing import Callable, Sequence
 
 import ufl
@@ -64,6 +66,23 @@ class ContactProblem:
                 matrix = dx.matrix_with_couplings(self.jacobian, u.function_space, blocks)
         self.solver = NewtonSolver(self.residual, self.jacobian, u, self.bcs, settings,
                                    self.pairs, self.timings, matrix, should_stop, prefix)
+        # the matrix with the couplings, when the solver's own is another one (multipliers)
+        self._release = weakref.finalize(self, matrix.destroy) if matrix is not None \
+            else None
+
+    def close(self) -> None:
+        """Destroy the PETSc objects (SNES, matrices, vectors) now, as DOLFINx 0.10's
+        ``fem.petsc.NonlinearProblem`` does; u and the pairs stay usable. Without it they
+        go when the last reference to the problem does. Collective, idempotent."""
+        self.solver.close()
+        if self._release is not None:
+            self._release()
+
+    def __enter__(self) -> "ContactProblem":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
 
     @property
     def snes(self):
@@ -74,6 +93,9 @@ class ContactProblem:
         """Newton solves at the current loads (one per augmentation) from the current u.
         Converged: the pairs' step history is committed. Not converged: u and the history
         are restored to where the solve started, and the result says why."""
+        if self.solver.closed:
+            raise RuntimeError("ContactProblem: closed (its PETSc objects are destroyed); "
+                               "make a new one")
         self.solver.system.pull(self.solver.x)   # the user may have set u
         saved = self.solver.save_state()
         for p in self.pairs:

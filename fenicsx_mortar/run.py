@@ -15,6 +15,7 @@ import signal
 import sys
 import threading
 import time
+import weakref
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, TypeVar
@@ -131,7 +132,9 @@ def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM
                                  settings=scene.solver, timings=timings,
                                  should_stop=stop.requested)
         solver = problem.solver
-        solver.check_solution = guards.StepGuard(scene, bulk, solver)
+        # (a proxy: a guard holding the solver it is held by would keep both, with the
+        # PETSc objects, until the cycle collector ran)
+        solver.check_solution = guards.StepGuard(scene, bulk, weakref.proxy(solver))
     ndofs = dx.dof_count(bulk.V)
     log(f"  dofs: {ndofs}, ranks: {comm.size}")
 

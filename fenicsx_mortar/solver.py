@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from typing import Callable, Protocol
 
 import numpy as np
+from mpi4py import MPI  # noqa: F401  (before petsc4py: the PyPI wheel needs it, _dolfinx.py)
 from petsc4py import PETSc
 
 from . import _dolfinx as dx
@@ -109,7 +110,11 @@ class NewtonSolver:
     """PETSc SNES (newtonls + line search, LU by default) on a residual and Jacobian form
     (compiled) of ``u``, with Dirichlet conditions ``bcs`` and hooks (contact pairs) that
     add their terms at every iterate. ``matrix``: a Jacobian matrix with the hooks'
-    couplings preallocated (default: the form's own sparsity)."""
+    couplings preallocated (default: the form's own sparsity).
+
+    The SNES calls back through weak references (:func:`weak_callback`), so the solver
+    and its PETSc objects go as soon as the last reference does; :meth:`close` (or a
+    ``with`` block) destroys them at once."""
 
     def __init__(self, residual, jacobian, u, bcs, settings: SolverSettings, hooks: list[Hook],
                  timings: Timings, matrix=None,
@@ -139,9 +144,10 @@ class NewtonSolver:
         user = {k.lstrip("-"): v for k, v in settings.petsc.items()}
         #: the line search in use (a full-Newton retry switches to "basic" and back to it)
         self.line_search = str(user.get("snes_linesearch_type", settings.line_search))
+        snes = self.snes
         self._full_first = FullStepOrSecant(
-            self._evaluate, self.snes.getFunctionNorm,
-            fail=lambda: self.snes.setConvergedReason(
+            weak_callback(self._evaluate), snes.getFunctionNorm,
+            fail=lambda: snes.setConvergedReason(
                 PETSc.SNES.ConvergedReason.DIVERGED_LINE_SEARCH))
         options = {"snes_type": "newtonls",
                    "snes_linesearch_type": _petsc_line_search(settings.line_search),
@@ -152,15 +158,15 @@ class NewtonSolver:
         opts = PETSc.Options()
         for k, v in options.items():
             opts[prefix + k] = v
-        self.snes.setFunction(self._residual, self.b)
-        self.snes.setJacobian(self._jacobian, self.A)
-        self.snes.setConvergenceTest(self._converged)
+        self.snes.setFunction(weak_callback(self._residual), self.b)
+        self.snes.setJacobian(weak_callback(self._jacobian), self.A)
+        self.snes.setConvergenceTest(weak_callback(self._converged))
         self.snes.setFromOptions()
         self.snes.getKSP().setFromOptions()
         # registered once, switched on and off (_set_precheck): PETSc ignores a NULL
         # precheck, and petsc4py's setLineSearchPreCheck(None) then leaves a dangling
         # context (a crash, seen)
-        self.snes.setLineSearchPreCheck(self._full_first.precheck)
+        self.snes.setLineSearchPreCheck(weak_callback(self._full_first.precheck))
         self._set_precheck(self.line_search)
         # PETSc's options database is global and holds at most 512 entries: drop ours once
         # applied, or a process that builds many solvers (a study, a test session) runs out.
@@ -173,8 +179,38 @@ class NewtonSolver:
         self._token = object()
         for k in self._factor_options:
             _OWNER[k] = self._token
-        # (grow_workspace adds to the list; the finalizer sees it)
-        weakref.finalize(self, _drop_options, self._factor_options, self._token)
+        # Destroyed, not left to petsc4py: since PETSc 3.18 an object petsc4py lets go of
+        # waits in PETSc's garbage, with its MUMPS communicators, until a collective
+        # garbage_cleanup. (grow_workspace adds to the option list; the finalizer sees it.)
+        # Runs where the last reference goes: the same point of the program on every rank.
+        self._release = weakref.finalize(self, _release, self.snes, self.system,
+                                         self._full_first, self._factor_options, self._token)
+
+    @property
+    def closed(self) -> bool:
+        return not self._release.alive
+
+    def close(self) -> None:
+        """Destroy the PETSc objects (SNES, matrices, vectors) and drop the solver's
+        options now, as DOLFINx 0.10's ``NonlinearProblem`` does; u keeps its values.
+        Without it that happens when the last reference to the solver goes. Collective,
+        idempotent; the solver cannot solve afterwards."""
+        if self.closed:
+            return
+        self._release()
+        self._collect_garbage()
+
+    def _collect_garbage(self) -> None:
+        """Destroy the PETSc objects Python let go of on u's communicator (a saved state, a
+        reactions vector): petsc4py >= 3.18 parks them until this collective call, with
+        PETSc's communicator as the key (not mpi4py's), for ever if nobody calls it."""
+        PETSc.garbage_cleanup(dx.function_vector(self.u).comm)
+
+    def __enter__(self) -> "NewtonSolver":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
 
     # -- SNES callbacks -------------------------------------------------------------
     def _set_iterate(self, x) -> None:
@@ -228,7 +264,7 @@ class NewtonSolver:
         self.history.append(float(fnorm))
         s = self.settings
         if not math.isfinite(fnorm):
-            return PETSc.SNES.ConvergedReason.DIVERGED_FNORM_NAN
+            return dx.SNES_DIVERGED_NAN
         if self.should_stop():
             return PETSc.SNES.ConvergedReason.DIVERGED_INNER  # no DIVERGED_USER in petsc4py 3.18
         small = fnorm <= s.atol and (fnorm <= s.rtol * self._r0 or self._r0 <= s.atol)
@@ -246,6 +282,10 @@ class NewtonSolver:
     # -- one load step ----------------------------------------------------------------
     def solve_step(self, max_augmentations: int = 50) -> StepResult:
         """Newton solves (one per augmentation) from the current state at the current load."""
+        if self.closed:
+            raise RuntimeError("NewtonSolver: closed (its PETSc objects are destroyed); "
+                               "make a new one")
+        self._collect_garbage()
         res = StepResult(converged=False)
         self._r0 = None
         for aug in range(max_augmentations + 1):
@@ -352,6 +392,15 @@ DEFAULT_WORKSPACE, MAX_WORKSPACE = 20, 160
 _OWNER: dict[str, object] = {}
 
 
+def _release(snes, system, full_first, keys: list[str], token: object) -> None:
+    """Destroy a solver's PETSc objects and drop its options (it is closed or gone)."""
+    for obj in (snes, system.A, system.b, system.x, getattr(system, "b_u", None),
+                getattr(system, "_lgmap", None), full_first._w, full_first._f):
+        if obj is not None:
+            obj.destroy()
+    _drop_options(keys, token)
+
+
 def _drop_options(keys: list[str], token: object) -> None:
     opts = PETSc.Options()
     for k in keys:
@@ -361,8 +410,33 @@ def _drop_options(keys: list[str], token: object) -> None:
 
 
 def _petsc_line_search(kind: str) -> str:
-    """PETSc's line-search type for ours: ``l2-full`` is ``basic`` with a precheck."""
-    return "basic" if kind == "l2-full" else kind
+    """PETSc's line-search type for ours: ``l2-full`` is ``basic`` with a precheck; ``l2``
+    is PETSc's secant search, whatever this PETSc calls it."""
+    return "basic" if kind == "l2-full" else (dx.LINE_SEARCH_SECANT if kind == "l2" else kind)
+
+
+def weak_callback(method: Callable) -> Callable:
+    """A plain function calling the bound ``method`` through a weak reference to its
+    object. Given to a SNES, a bound method makes a cycle (solver → SNES → method →
+    solver) that refcounting never frees, and petsc4py keeps callbacks where Python's
+    cycle collector does not look: every solver ever made, with its SNES, matrix and MPI
+    communicator, stayed (MPICH allows 2048 communicators a process).
+
+    Args:
+        method: a bound method.
+
+    Returns:
+        A function taking the method's arguments; it raises RuntimeError once the object
+        is gone.
+    """
+    ref = weakref.WeakMethod(method)
+
+    def call(*args):
+        bound = ref()
+        if bound is None:
+            raise RuntimeError("called back after its solver was freed")
+        return bound(*args)
+    return call
 
 
 def _linear_solver_options(name: str) -> dict:

@@ -86,7 +86,8 @@ def command(case: Case, d: Path) -> list[str]:
         cmd += ["-m", "fenicsx_mortar"]
     cmd += case.args(d)
     if case.mode == "mpi":
-        cmd = ["mpirun", "-n", str(case.ranks), "--oversubscribe", *cmd]
+        from fenicsx_mortar.mpi_launch import mpi_command
+        cmd = [*mpi_command(case.ranks), *cmd]
     return cmd
 
 
