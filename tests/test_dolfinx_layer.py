@@ -11,18 +11,25 @@ import pytest
 
 from conftest import ROOT, run_python
 from fenicsx_mortar import _dolfinx as dx
-from fenicsx_mortar._dolfinx_versions import GENERATIONS, select, v0_5, v0_9
+from fenicsx_mortar._dolfinx_versions import GENERATIONS, select, v0_5, v0_9, v0_10, v0_11
 
 LAYER = {ROOT / "fenicsx_mortar" / "_dolfinx.py", ROOT / "fenicsx_mortar" / "_dolfinx_versions"}
 
 
-def test_generations_offer_the_same_functions():
+@pytest.mark.parametrize("gen", [v0_5, v0_10, v0_11], ids=lambda m: m.__name__[-4:])
+def test_generations_offer_the_same_functions(gen):
     # _dolfinx.py calls whatever the running version's module offers: every generation
     # must offer the reference's (0.9's) functions with the same parameters
-    assert v0_5.__all__ == v0_9.__all__
+    assert gen.__all__ == v0_9.__all__
     for name in v0_9.__all__:
         ref = inspect.signature(getattr(v0_9, name))
-        assert inspect.signature(getattr(v0_5, name)) == ref, name
+        assert inspect.signature(getattr(gen, name)) == ref, name
+
+
+def test_every_generation_is_selectable():
+    assert sorted(GENERATIONS) == [(0, 5), (0, 9), (0, 10), (0, 11)]
+    for (major, minor), name in GENERATIONS.items():
+        assert select(f"{major}.{minor}.3.post1").__name__.endswith(name)
 
 
 def test_the_running_version_is_selected():
@@ -30,10 +37,11 @@ def test_the_running_version_is_selected():
     assert dx.api.__name__.endswith(GENERATIONS[(major, minor)])
 
 
-@pytest.mark.parametrize("version", ["0.10.0", "0.8.0", "1.0", "main"])
+@pytest.mark.parametrize("version", ["0.12.0", "0.8.0", "1.0", "main"])
 def test_untested_versions_are_refused_by_name(version):
-    with pytest.raises(ImportError, match=rf"DOLFINx 0\.5 or 0\.9, not {re.escape(version)}:"
-                                          r" install .*python3-dolfinx-real"):
+    with pytest.raises(ImportError, match=rf"DOLFINx 0\.5, 0\.9, 0\.10 or 0\.11, not "
+                                          rf"{re.escape(version)}: install .*python3-dolfinx-"
+                                          r"real, or DOLFINx 0\.11 from PyPI"):
         select(version)
 
 
