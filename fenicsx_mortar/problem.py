@@ -18,7 +18,6 @@ The scene runner (:func:`fenicsx_mortar.solve`) is a client of this class.
 """
 from __future__ import annotations
 
-import weakref
 from typing import Callable, Sequence
 
 import ufl
@@ -66,17 +65,14 @@ class ContactProblem:
                 matrix = dx.matrix_with_couplings(self.jacobian, u.function_space, blocks)
         self.solver = NewtonSolver(self.residual, self.jacobian, u, self.bcs, settings,
                                    self.pairs, self.timings, matrix, should_stop, prefix)
-        # the matrix with the couplings, when the solver's own is another one (multipliers)
-        self._release = weakref.finalize(self, matrix.destroy) if matrix is not None \
-            else None
+        if matrix is not None and matrix is not self.solver.A:
+            matrix.destroy()   # read once for the multipliers' pattern (system.py)
 
     def close(self) -> None:
         """Destroy the PETSc objects (SNES, matrices, vectors) now, as DOLFINx 0.10's
         ``fem.petsc.NonlinearProblem`` does; u and the pairs stay usable. Without it they
         go when the last reference to the problem does. Collective, idempotent."""
         self.solver.close()
-        if self._release is not None:
-            self._release()
 
     def __enter__(self) -> "ContactProblem":
         return self
