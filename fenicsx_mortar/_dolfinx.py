@@ -361,6 +361,45 @@ class XDMFWriter:
             self._io(f.close)
 
 
+def has_vtx() -> bool:
+    """Whether this DOLFINx writes VTX files (built with ADIOS2: PyPI's 0.11 is, Debian's
+    0.5.2 is not)."""
+    return hasattr(io, "VTXWriter")
+
+
+class VTXWriter:
+    """ParaView's VTX output (an ADIOS2 ``.bp`` folder): functions of one element type on
+    one mesh (a P1 vector and a DG0 tensor need a writer each), written per pseudo-time.
+
+    Args:
+        comm: the mesh's communicator (collective).
+        path: the ``.bp`` folder to write.
+        functions: the functions, all of the same space type.
+
+    Raises:
+        RuntimeError: this DOLFINx has no VTX output (built without ADIOS2).
+    """
+
+    def __init__(self, comm: MPI.Comm, path: str, functions) -> None:
+        if not has_vtx():
+            raise RuntimeError(f"VTX output needs DOLFINx built with ADIOS2; DOLFINx {VERSION} "
+                               "here is not (write XDMF instead: XDMFWriter)")
+        # (comm, filename, output): the same in 0.5 to 0.11
+        self._w = io.VTXWriter(comm, str(path), list(functions))
+
+    def write(self, t: float) -> None:
+        self._w.write(float(t))
+
+    def close(self) -> None:
+        self._w.close()
+
+    def __enter__(self) -> "VTXWriter":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
 def _quiet_hdf5() -> None:
     """Switch off HDF5's automatic printing of its error stack (tens of lines on stderr for
     one failed write; the failure still reaches us as DOLFINx's RuntimeError). Process-wide
