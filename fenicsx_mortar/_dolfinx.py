@@ -11,6 +11,7 @@ geometry and dof maps are (num_cells, k) arrays.
 """
 from __future__ import annotations
 
+import atexit
 import ctypes
 import errno
 import logging
@@ -48,6 +49,10 @@ SNES_DIVERGED_NAN = (_REASON.DIVERGED_FUNCTION_NANORINF
 #: PETSc's name of the secant line search on ‖F‖² that 3.24 renamed from "l2" ("l2" now
 #: names another algorithm)
 LINE_SEARCH_SECANT = "secant" if PETSc.Sys.getVersion() >= (3, 24, 0) else "l2"
+#: and what keeps it the same algorithm: 3.24 caps its step at maxlambda = 1 (l2 took steps
+#: up to maxstep = 1e8)
+LINE_SEARCH_SECANT_OPTIONS = ({"snes_linesearch_maxlambda": 1e8}
+                              if PETSc.Sys.getVersion() >= (3, 24, 0) else {})
 
 
 def model_to_mesh(model, comm: MPI.Comm, rank: int = 0):
@@ -344,11 +349,12 @@ class XDMFWriter:
         self._f = self._io(lambda: io.XDMFFile(comm, path, "w"))
         self._io(lambda: self._f.write_mesh(msh))
 
-    def _io(self, call):
+    def _io(self, call, file=None):
         try:
             return call()
         except RuntimeError as e:
             self.broken = True
+            _abandon(file if file is not None else self._f)
             raise OSError(errno.EIO, f"the HDF5 library failed ({e})", self._h5) from None
 
     def write(self, functions, t: float) -> None:
@@ -358,7 +364,33 @@ class XDMFWriter:
     def close(self) -> None:
         if self._f is not None and not self.broken:
             f, self._f = self._f, None
-            self._io(f.close)
+            self._io(f.close, f)
+
+
+def _abandon(xdmf_file) -> None:
+    """Never close a file whose write failed: closing fails again (an operation that failed
+    half-way leaves HDF5's cache entries protected), and PyPI's HDF5, built with
+    assertions, then aborts the process (-6 instead of the run's exit 1). Neither DOLFINx's
+    destructor (the object is kept for ever) nor HDF5's shutdown at exit or at
+    MPI_Finalize (told the library is closed already) gets to it."""
+    if xdmf_file is not None:      # (None: the open itself failed, inside DOLFINx)
+        ctypes.pythonapi.Py_IncRef(ctypes.py_object(xdmf_file))
+    global _hdf5_abandoned
+    if not _hdf5_abandoned:
+        _hdf5_abandoned = True
+        atexit.register(_skip_hdf5_shutdown)   # runs before mpi4py's MPI_Finalize
+
+
+def _skip_hdf5_shutdown() -> None:
+    for lib in _hdf5_libs:
+        try:
+            # H5_term_library does nothing while H5_libinit_g is false (HDF5 1.8 to 1.14)
+            ctypes.c_bool.in_dll(lib, "H5_libinit_g").value = False
+        except (ValueError, AttributeError):
+            pass                                     # another HDF5: as before
+
+
+_hdf5_abandoned = False
 
 
 def has_vtx() -> bool:
@@ -417,6 +449,7 @@ def _quiet_hdf5() -> None:
     for path in paths:
         try:
             lib = ctypes.CDLL(path)
+            _hdf5_libs.append(lib)
             # herr_t H5Eset_auto2(hid_t estack, H5E_auto2_t func, void *data); hid_t is
             # int64_t since HDF5 1.10, H5E_DEFAULT = 0 (the default error stack)
             lib.H5Eset_auto2.argtypes = [ctypes.c_int64, ctypes.c_void_p, ctypes.c_void_p]
@@ -426,6 +459,7 @@ def _quiet_hdf5() -> None:
 
 
 _hdf5_quiet = False
+_hdf5_libs: list[ctypes.CDLL] = []
 
 
 def measures(msh: Mesh, cell_tags, facet_tags, degree: int):

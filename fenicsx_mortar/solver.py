@@ -149,8 +149,7 @@ class NewtonSolver:
             weak_callback(self._evaluate), snes.getFunctionNorm,
             fail=lambda: snes.setConvergedReason(
                 PETSc.SNES.ConvergedReason.DIVERGED_LINE_SEARCH))
-        options = {"snes_type": "newtonls",
-                   "snes_linesearch_type": _petsc_line_search(settings.line_search),
+        options = {"snes_type": "newtonls", **_line_search_options(settings.line_search),
                    "snes_max_it": settings.max_iterations, "snes_max_funcs": 100000}
         options.update(_linear_solver_options(settings.linear_solver))
         options.update({k: "" if v is True else ("false" if v is False else v)
@@ -355,9 +354,12 @@ class NewtonSolver:
         """Switch SNES's line search (petsc4py 3.18 has no line-search object: through the
         options database, dropped again once applied)."""
         opts = PETSc.Options()
-        opts[self._prefix + "snes_linesearch_type"] = _petsc_line_search(kind)
+        keys = _line_search_options(kind)
+        for k, v in keys.items():
+            opts[self._prefix + k] = v
         self.snes.setFromOptions()
-        opts.delValue(self._prefix + "snes_linesearch_type")
+        for k in keys:
+            opts.delValue(self._prefix + k)
         self._set_precheck(kind)
 
     def _set_precheck(self, kind: str) -> None:
@@ -413,6 +415,13 @@ def _petsc_line_search(kind: str) -> str:
     """PETSc's line-search type for ours: ``l2-full`` is ``basic`` with a precheck; ``l2``
     is PETSc's secant search, whatever this PETSc calls it."""
     return "basic" if kind == "l2-full" else (dx.LINE_SEARCH_SECANT if kind == "l2" else kind)
+
+
+def _line_search_options(kind: str) -> dict:
+    """PETSc options of our line search ``kind``."""
+    petsc = _petsc_line_search(kind)
+    return {"snes_linesearch_type": petsc,
+            **(dx.LINE_SEARCH_SECANT_OPTIONS if petsc == dx.LINE_SEARCH_SECANT else {})}
 
 
 def weak_callback(method: Callable) -> Callable:
