@@ -233,6 +233,7 @@ def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM
     summary["timings"] = dict(timings)
     _enter("reading the scene")
     log(("done: " if completed else "FAILED: ") + message)
+    problem.close()   # its PETSc objects now, on every rank alike
     return Result(scene, completed, message, steps, dict(timings), dom, bulk, stress, pairs,
                   summary)
 

@@ -178,12 +178,10 @@ class NewtonSolver:
         self._token = object()
         for k in self._factor_options:
             _OWNER[k] = self._token
-        # Destroyed, not left to petsc4py: since PETSc 3.18 an object petsc4py lets go of
-        # waits in PETSc's garbage, with its MUMPS communicators, until a collective
-        # garbage_cleanup. (grow_workspace adds to the option list; the finalizer sees it.)
-        # Runs where the last reference goes: the same point of the program on every rank.
+        # (grow_workspace adds to the option list; the finalizer sees it)
         self._release = weakref.finalize(self, _release, self.snes, self.system,
                                          self._full_first, self._factor_options, self._token)
+        self._release.atexit = False   # at exit PETSc's own finalization does it, as before
 
     @property
     def closed(self) -> bool:
@@ -196,7 +194,8 @@ class NewtonSolver:
         idempotent; the solver cannot solve afterwards."""
         if self.closed:
             return
-        self._release()
+        _, _, args, _ = self._release.detach()
+        _release(*args, collective=True)
         self._collect_garbage()
 
     def _collect_garbage(self) -> None:
@@ -394,12 +393,19 @@ DEFAULT_WORKSPACE, MAX_WORKSPACE = 20, 160
 _OWNER: dict[str, object] = {}
 
 
-def _release(snes, system, full_first, keys: list[str], token: object) -> None:
-    """Destroy a solver's PETSc objects and drop its options (it is closed or gone)."""
-    for obj in (snes, system.A, system.b, system.x, getattr(system, "b_u", None),
-                getattr(system, "_lgmap", None), full_first._w, full_first._f):
-        if obj is not None:
-            obj.destroy()
+def _release(snes, system, full_first, keys: list[str], token: object,
+             collective: bool = False) -> None:
+    """Drop a solver's options and destroy its PETSc objects: on ``close()`` (collective),
+    or when its last reference went in a serial run. Under MPI that may have been a garbage
+    collection on one rank only (rank 0's plots leave cycles), where a destroy, collective
+    in MUMPS, would hang: the objects go to petsc4py's garbage, which a collective cleanup
+    empties (the next solve on the communicator, PETSc's finalization). Left to petsc4py
+    in serial too, they would wait there with their MUMPS communicators."""
+    if collective or snes.comm.size == 1:
+        for obj in (snes, system.A, system.b, system.x, getattr(system, "b_u", None),
+                    getattr(system, "_lgmap", None), full_first._w, full_first._f):
+            if obj is not None:
+                obj.destroy()
     _drop_options(keys, token)
 
 
