@@ -297,14 +297,23 @@ def _check_areas(x: np.ndarray, cells: np.ndarray, where: str) -> None:
 
 
 def _gmsh_initialize(gmsh) -> None:
-    """gmsh.initialize keeping our SIGINT handler: gmsh >= 4.11 resets SIGINT to the default
-    (an interrupt while meshing would kill the process without a word)."""
+    """gmsh.initialize keeping our SIGINT and SIGTERM handlers: gmsh >= 4.11 resets SIGINT to
+    the default unless ``interruptible=False``, gmsh 4.15 resets SIGTERM regardless (a
+    signal while meshing would kill the process without a word)."""
     import inspect
+    import signal
+    import threading
+    kept = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
     # no ~/.gmshrc or ~/.gmsh-options: they are scripts too, and not the scene's
     if "interruptible" in inspect.signature(gmsh.initialize).parameters:
         gmsh.initialize(readConfigFiles=False, interruptible=False)
     else:
         gmsh.initialize(readConfigFiles=False)
+    if threading.current_thread() is threading.main_thread():
+        # Python still lists its handler after a C-level reset: install it again
+        for s, handler in kept.items():
+            if handler is not None:
+                signal.signal(s, handler)
 
 
 def build_domain(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD) -> Domain:

@@ -118,6 +118,8 @@ class ContactProblem:
                                    self.pairs, self.timings, matrix,
                                    should_stop or (lambda: None), petsc_options_prefix,
                                    po.normalize(petsc_options))
+        if matrix is not None and matrix is not self.newton.A:
+            matrix.destroy()   # read once for the multipliers' pattern (system.py)
         self.newton.accept = Acceptance(u, self.pairs, settings.quadrature_degree,
                                         physical=acceptance, cell_tags=cell_tags,
                                         body_names=body_names)
@@ -146,7 +148,8 @@ class ContactProblem:
             ``residuals``, ``augmentations``, ``reason``).
         """
         if self._closed:
-            raise ValueError("solve(): the problem was closed")
+            raise RuntimeError("ContactProblem: closed (its PETSc objects are destroyed); "
+                               "make a new one")
         self._check_supports()
         newton = self.newton
         newton.system.pull(newton.x)   # the user may have set u

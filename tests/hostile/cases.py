@@ -244,6 +244,20 @@ _HELD: dict[Path, int] = {}
 _BACKGROUND: dict[Path, subprocess.Popen] = {}
 
 
+def hdf5_fails_first() -> None:
+    """prepare: skip where the HDF5 write cannot fail first. With PyPI's DOLFINx 0.11 wheel
+    the XDMF writes went through on every disk size from 9 to 48 KiB and the checkpoint
+    failed first (one line naming it: as with XDMF off); on 8 KiB and less its HDF5, built
+    with assertions, aborts inside the file creation."""
+    import importlib.metadata
+    try:
+        importlib.metadata.version("dolfinx-solver-real")
+    except importlib.metadata.PackageNotFoundError:
+        return
+    raise Skip("PyPI's DOLFINx wheel: no disk size on which its HDF5 write fails first "
+               "(hdf5_fails_first)")
+
+
 class Skip(Exception):
     """This machine cannot lay the case out (e.g. no way to make a read-only directory)."""
 
@@ -938,8 +952,8 @@ add(
     # the HDF5 library's write fails first here (XDMF on): one line naming the .h5 file
     # and the disk, no traceback, no HDF5 error stack; scene.json stays whole
     Case("disk_full_xdmf", 1, "solution.h5", base(("steps.count", 3)), mode="process",
-         prepare=lambda d, donors: small_disk(d, donors, "16k"), check=scene_json_whole,
-         stage="run"),
+         prepare=lambda d, donors: (hdf5_fails_first(), small_disk(d, donors, "16k")),
+         check=scene_json_whole, stage="run"),
     Case("disk_full", 1, "No space left", base(("steps.count", 3),
                                                ("output", {"xdmf": False, "plots": False})),
          mode="process", fault=True, check=full_disk_kept, stage="run"),

@@ -86,7 +86,8 @@ def command(case: Case, d: Path) -> list[str]:
         cmd += ["-m", "fenicsx_mortar"]
     cmd += case.args(d)
     if case.mode == "mpi":
-        cmd = ["mpirun", "-n", str(case.ranks), "--oversubscribe", *cmd]
+        from fenicsx_mortar.mpi_launch import mpi_command
+        cmd = [*mpi_command(case.ranks), *cmd]
     return cmd
 
 
@@ -148,12 +149,18 @@ def problem(case: Case, o: Outcome) -> str:
 def ours(err: str) -> str:
     """stderr without Open MPI's own reports (of a non-zero exit, of MPI_Abort): its blocks
     between dashed lines, its "[host:pid] ..." help-aggregation lines and its components'
-    lines ("mca_fbtl_posix_pwritev: error in (p)write(v): ..." on a full disk)."""
-    kept, inside = [], False
+    lines ("mca_fbtl_posix_pwritev: error in (p)write(v): ..." on a full disk); and without
+    MPICH's line for MPI_Abort ("Abort(1) on node 0 (rank 0 in comm 0): ...") and the
+    copy of the aborting rank's last line that MPICH's launcher sometimes forwards again
+    with it (seen with mpiexec -prepend-rank: both from rank 0, written once)."""
+    kept, inside, aborted = [], False, False
     for line in err.splitlines(keepends=True):
         if line.startswith("-----"):
             inside = not inside
-        elif not inside and not re.match(r"\[[^\]\s]+:\d+\] |mca_\w+: ", line):
+        elif re.match(r"Abort\(\d+\) on node \d+ ", line):
+            aborted = True
+        elif not inside and not re.match(r"\[[^\]\s]+:\d+\] |mca_\w+: ", line) \
+                and not (aborted and line in kept):
             kept.append(line)
     return "".join(kept)
 
