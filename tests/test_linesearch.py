@@ -7,7 +7,7 @@ from petsc4py import PETSc
 
 from fenicsx_mortar import _dolfinx as dx
 from fenicsx_mortar.linesearch import FullStepOrSecant
-from fenicsx_mortar.solver import _line_search_options
+from fenicsx_mortar.petsc_options import line_search_options as _line_search_options
 
 
 def arctan_system(x):
