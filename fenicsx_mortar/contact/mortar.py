@@ -302,36 +302,65 @@ def _nodal(q: _Integrand, pairs=None, weights=None) -> Jet2:
     return ad.substitute(J * (f * ((zeta * (wb - wa) + wa) * q.w)).sum(0), inner, mix)
 
 
+class _Block:
+    """The inputs of :func:`_pair_block` for one block of pairs, so that its jets can be
+    formed again with Hessians for the pairs the tangent asks for (:class:`_Deferred`): the
+    update forms values and gradients only, for every pair."""
+
+    def __init__(self, X, pm, curve, n_gauss, ends, test, slave):
+        self.X, self.pm, self.curve, self.n_gauss = X, pm, curve, n_gauss
+        self.ends, self.test, self.slave = ends, test, slave
+        self._last = None
+
+    def integrands(self, part=None):
+        """:func:`_pair_block` of the pairs ``part`` (slice or index array into the block;
+        None: all), with Hessians unless inside :func:`.ad.gradients_only`; the last result
+        is kept (the gap Hessians and the test Jacobians of one tangent share it)."""
+        key = (ad.second_order(), None if part is None else
+               (part.start, part.stop) if isinstance(part, slice) else part.tobytes())
+        if self._last is not None and self._last[0] == key:
+            return self._last[1]
+        if part is None:
+            X, pm, ends, slave = self.X, self.pm, self.ends, self.slave
+        else:
+            X, pm, ends = self.X[part], self.pm[part], self.ends.subset(part)
+            slave = None if self.slave is None else (self.slave[0], self.slave[1][part])
+        out = _pair_block(X, pm, self.curve, self.n_gauss, ends, self.test, slave)
+        self._last = (key, out)
+        return out
+
+
 class _Deferred:
     """A block [rows, cols] of the Hessians of the kernel's contributions ∫ N_j f dΓ
-    (node-a rows, then node-b rows) from the stored integrands (:class:`_Integrand` per
-    block of pairs), formed on demand: all of them (call), or one weighted sum per pair
-    (:meth:`weighted`). Newton's tangent needs only the latter, and only for the pairs with
-    a node in contact (Hertz: a quarter of them)."""
+    (node-a rows, then node-b rows) of the integrands ``kind`` (0: weighted gaps, 1: test
+    functionals) of the blocks of pairs (:class:`_Block`), formed on demand: all of them
+    (call), or one weighted sum per pair (:meth:`weighted`). Newton's tangent needs only
+    the latter, and only for the pairs with a node in contact (Hertz: a quarter of them):
+    their jets are formed again, with Hessians, for just those pairs."""
 
-    def __init__(self, K: int, blocks: list, rows: slice, cols: slice, shape: tuple):
-        self.K, self.blocks, self.rows, self.cols, self.shape = K, blocks, rows, cols, shape
+    def __init__(self, K: int, blocks: list, kind: int, rows: slice, cols: slice,
+                 shape: tuple):
+        self.K, self.blocks, self.kind = K, blocks, kind
+        self.rows, self.cols, self.shape = rows, cols, shape
 
     def __call__(self) -> np.ndarray:
         out = np.empty((2, self.K) + self.shape)
-        for b0, b1, q in self.blocks:
-            out[:, b0:b1] = _nodal(q).hess[..., self.rows, self.cols]
+        for b0, b1, blk in self.blocks:
+            out[:, b0:b1] = _nodal(blk.integrands()[self.kind]).hess[..., self.rows, self.cols]
         return out.reshape((2 * self.K,) + self.shape)
 
     def weighted(self, wa: np.ndarray, wb: np.ndarray, pairs) -> np.ndarray:
         """wa H_a + wb H_b of the pairs (index array or slice into [0, K))."""
-        if len(self.blocks) == 1:
-            return _nodal(self.blocks[0][2], pairs, (wa, wb)).hess[..., self.rows, self.cols]
         idx = np.arange(self.K)[pairs]
         out = np.empty((idx.shape[0],) + self.shape)
-        for b0, b1, q in self.blocks:
+        for b0, b1, blk in self.blocks:
             here = np.flatnonzero((idx >= b0) & (idx < b1))
             if here.shape[0] == 0:
                 continue
             sel = slice(here[0], here[-1] + 1)
-            # the whole block (all its pairs asked for): views instead of gathers
             part = (slice(0, b1 - b0) if here.shape[0] == b1 - b0 else idx[sel] - b0)
-            out[sel] = _nodal(q, part, (wa[sel], wb[sel])).hess[..., self.rows, self.cols]
+            q = blk.integrands(part)[self.kind]
+            out[sel] = _nodal(q, None, (wa[sel], wb[sel])).hess[..., self.rows, self.cols]
         return out
 
 
@@ -534,29 +563,29 @@ def weighted_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarr
     test = curve.hat_test or slave_curve is not None
     if test:
         tgrad = np.empty((2, K, 8))
-    gap_blocks, test_blocks = [], []
+    blocks = []
     for b0 in range(0, K, block):
         b1 = min(b0 + block, K)
-        gaps, tests = _pair_block(
-            X[b0:b1], pm[b0:b1], curve, n_gauss,
-            ends if b1 - b0 == K else ends.subset(slice(b0, b1)), test,
-            None if slave_curve is None else (slave_curve, ps[b0:b1]))
-        # values and gradients now; the Hessians when the tangent asks (_Deferred)
+        blk = _Block(X[b0:b1], pm[b0:b1], curve, n_gauss,
+                     ends if b1 - b0 == K else ends.subset(slice(b0, b1)), test,
+                     None if slave_curve is None else (slave_curve, ps[b0:b1]))
+        # values and gradients of every pair now; Hessians for the pairs the tangent asks
+        # for, when it asks (_Deferred): most candidate pairs are not in contact
         with ad.gradients_only():
+            gaps, tests = blk.integrands()
             q = _nodal(gaps)
             val[0, :, b0:b1] = q.val
             grad[0, :, b0:b1] = q.grad[..., :m]
             if test:
                 tgrad[:, b0:b1] = _nodal(tests).grad[..., m:]
         val[1, :, b0:b1], grad[1, :, b0:b1] = _areas(X[b0:b1], gaps.bounds)
-        gap_blocks.append((b0, b1, gaps))
-        test_blocks.append((b0, b1, tests))
+        blocks.append((b0, b1, blk))
 
     def area_hessian() -> np.ndarray:
         # the contact terms need only ∇A: the area Hessian is built on demand
         H = np.empty((2 * K, m, m))
-        for b0, b1, gaps in gap_blocks:
-            area_a, area_b = _area_jets(X[b0:b1], *gaps.bounds.jets(m))
+        for b0, b1, blk in blocks:
+            area_a, area_b = _area_jets(X[b0:b1], *blk.integrands()[0].bounds.jets(m))
             H[b0:b1] = area_a.hess
             H[K + b0:K + b1] = area_b.hess
         return H
@@ -564,8 +593,8 @@ def weighted_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarr
     node = np.concatenate([na, nb])
     slave_nodes = np.tile(np.stack([na, nb], axis=1), (2, 1))
     master_nodes = np.tile(stencil, (2, 1))
-    hess = _Deferred(K, gap_blocks, slice(0, m), slice(0, m), (m, m))
-    jac = _Deferred(K, test_blocks, slice(m, m + 8), slice(0, m), (8, m)) if test else None
+    hess = _Deferred(K, blocks, 0, slice(0, m), slice(0, m), (m, m))
+    jac = _Deferred(K, blocks, 1, slice(m, m + 8), slice(0, m), (8, m)) if test else None
     if basis == "dual":
         val[0], grad[0] = _dual(val[0]), _dual(grad[0])
         hess = _Dual(hess)
