@@ -584,18 +584,23 @@ def span_basis(U: np.ndarray, span: np.ndarray, t0: np.ndarray, p: int) -> np.nd
     return N
 
 
-def _sparse_inverse(A: np.ndarray, block: int = 512, drop: float = 1e-17):
-    """Entries (rows, cols, values) of A⁻¹ for the banded (or cyclic banded) interpolation
-    matrix, by a sparse LU and blocks of unit right-hand sides; entries below ``drop``
-    times their column's maximum are left out (the inverse of a B-spline collocation
-    matrix decays geometrically away from the diagonal)."""
+def _sparse_inverse(A: np.ndarray, block: int = 512, drop: float = 1e-17, rhs=None):
+    """Entries (rows, cols, values) of A⁻¹ (or of A⁻¹ rhs, ``rhs`` a sparse matrix) for the
+    banded (or cyclic banded) interpolation matrix, by a sparse LU and blocks of right-hand
+    sides; entries below ``drop`` times their column's maximum are left out (the inverse of
+    a B-spline collocation matrix decays geometrically away from the diagonal)."""
     lu = spla.splu(sp.csc_matrix(A))
     n = A.shape[0]
+    rhs = None if rhs is None else sp.csc_matrix(rhs)
+    n_cols = n if rhs is None else rhs.shape[1]
     rows, cols, vals = [], [], []
-    for j0 in range(0, n, block):
-        j1 = min(j0 + block, n)
-        E = np.zeros((n, j1 - j0))
-        E[np.arange(j0, j1), np.arange(j1 - j0)] = 1.0
+    for j0 in range(0, n_cols, block):
+        j1 = min(j0 + block, n_cols)
+        if rhs is None:
+            E = np.zeros((n, j1 - j0))
+            E[np.arange(j0, j1), np.arange(j1 - j0)] = 1.0
+        else:
+            E = rhs[:, j0:j1].toarray()
         X = lu.solve(E)
         keep = np.abs(X) > drop * np.abs(X).max(axis=0, keepdims=True)
         r, c = np.nonzero(keep)
@@ -646,13 +651,22 @@ class BSplineParametrization:
                 k = np.arange(-p, n + p + 1)
                 U = ubar[k % n] + np.floor_divide(k, n)
                 n_ctrl = n
+            elif n >= 3:
+                # knots at the parameters, and the end derivatives dx/dū of the quartic (a
+                # cubic on 4 nodes) through the end nodes in ū: exact to O(h⁴), so the end
+                # segments keep the interior's order and constant (not-a-knot ends had
+                # 2.7 × the interior's gap error and polluted the next segments)
+                p = 3
+                U = np.concatenate([np.zeros(4), ubar[1:n], np.ones(4)])
+                n_ctrl = n + 3
+                k = min(5, n + 1)
+                end = (_derivative_weights(ubar[:k], 0.0), _derivative_weights(ubar[-k:], 1.0))
             else:
-                p = min(3, n)
-                inner = [ubar[j:j + p].mean() for j in range(1, n - p + 1)]
-                U = np.concatenate([np.zeros(p + 1), inner, np.ones(p + 1)])
+                p = n
+                U = np.concatenate([np.zeros(p + 1), np.ones(p + 1)])
                 n_ctrl = n + 1
             chains.append(dict(nodes=nodes, segs=segs, closed=closed, p=p, ubar=ubar, U=U,
-                               n_ctrl=n_ctrl))
+                               n_ctrl=n_ctrl, end=None if closed or n < 3 else end))
         self = cls(chains, x.shape[0])
         self._tables(seg.shape[0])
         return self
@@ -711,7 +725,10 @@ class BSplineParametrization:
             A = np.zeros((nd, ch["n_ctrl"]))
             for kk in range(p + 1):
                 np.add.at(A, (np.arange(nd), self._ctrl(ch, mk - p + kk)), Bk[:, kk])
-            r, c, v = _sparse_inverse(A)
+            if ch["end"] is None:
+                r, c, v = _sparse_inverse(A)
+            else:
+                r, c, v = self._with_end_derivatives(ch, A)
             rows.append(offset + r)
             cols.append(ch["nodes"][c])
             vals.append(v)
@@ -722,6 +739,34 @@ class BSplineParametrization:
         self.point_map = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows),
                                         np.concatenate(cols))),
                                        shape=(self.n_points, self.n_nodes))
+
+
+    @staticmethod
+    def _with_end_derivatives(ch, A: np.ndarray, drop: float = 1e-17):
+        """Entries (control point, node, value) of the map nodes → control points of an
+        open chain with the end derivative conditions C′(0) = Σ w₀ x, C′(1) = Σ w₁ x: the
+        interpolation rows ``A`` and the two derivative rows (C′(0) = 3/u₄ (P₁ − P₀),
+        C′(1) = 3/(1 − u_{n−1}) (P_n − P_{n−1}), Piegl & Tiller eq. 3.7) solved for the
+        right-hand sides [x; Σ w₀ x; Σ w₁ x], still linear in the nodes."""
+        U, nd, nc = ch["U"], A.shape[0], ch["n_ctrl"]
+        w0, w1 = ch["end"]
+        k = w0.shape[0]
+        d0, d1 = 3.0 / U[4], 3.0 / (1.0 - U[nc - 1])
+        M = np.zeros((nd + 2, nc))
+        M[:nd] = A
+        M[nd, :2] = -d0, d0
+        M[nd + 1, nc - 2:] = -d1, d1
+        rhs = sp.vstack([sp.identity(nd),
+                         sp.csr_matrix((w0, (np.zeros(k), np.arange(k))), shape=(1, nd)),
+                         sp.csr_matrix((w1, (np.zeros(k), np.arange(nd - k, nd))),
+                                       shape=(1, nd))])
+        return _sparse_inverse(M, drop=drop, rhs=rhs)
+
+
+def _derivative_weights(t: np.ndarray, t0: float) -> np.ndarray:
+    """w with Σ w_i f(t_i) = q′(t0), q the polynomial through (t_i, f(t_i))."""
+    V = np.vander(t - t0, t.shape[0], increasing=True)
+    return np.linalg.solve(V.T, np.eye(t.shape[0])[1])
 
 
 @SMOOTHINGS.register("bspline")
