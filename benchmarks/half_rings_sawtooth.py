@@ -16,8 +16,9 @@ and the rest: its RMS and peak-to-peak, and the trend's value at t = 2.
 Runs: the polyline ("none"), Hermite, B-spline, and Hermite with the *end chord's* tangent at
 the master's open ends (its reflected ghost instead of the circle through the last three
 nodes, ``Hermite.circle_ends = False``: the polyline's end geometry on a smoothed interior; a
-worse geometry, O(h²) at the end segment, run only to find out what sets the sawtooth), and
-the frictionless polyline.
+worse geometry, O(h²) at the end segment, run only to find out what sets the sawtooth), the
+B-spline and the polyline with the standard multiplier basis, the B-spline with a Hermite
+slave curve (two-sided), and the frictionless polyline.
 
 Writes the section between ``<!-- sawtooth -->`` markers of docs/smoothing.md and
 ``results/half_rings_sawtooth/runs.json``.
@@ -41,10 +42,14 @@ OUT = ROOT / "results" / "half_rings_sawtooth"
 DOC = ROOT / "docs" / "smoothing.md"
 MARK = ("<!-- sawtooth -->", "<!-- /sawtooth -->")
 FINE_FROM, N_TURN = 1.2, 100
-#: (run, μ, smoothing, Hermite end tangent from the circle)
-RUNS = [("none", 0.3, "none", True), ("hermite", 0.3, "hermite", True),
-        ("bspline", 0.3, "bspline", True), ("hermite, chord ends", 0.3, "hermite", False),
-        ("none, μ = 0", 0.0, "none", True)]
+#: (run, μ, smoothing, Hermite end tangent from the circle, other contact settings)
+RUNS = [("none", 0.3, "none", True, {}), ("hermite", 0.3, "hermite", True, {}),
+        ("bspline", 0.3, "bspline", True, {}), ("hermite, chord ends", 0.3, "hermite", False, {}),
+        ("bspline, standard basis", 0.3, "bspline", True, {"basis": "standard"}),
+        ("none, standard basis", 0.3, "none", True, {"basis": "standard"}),
+        ("bspline, two-sided (hermite slave)", 0.3, "bspline", True,
+         {"slave_smoothing": "hermite"}),
+        ("none, μ = 0", 0.0, "none", True, {})]
 
 
 def step_times() -> list[float]:
@@ -65,6 +70,8 @@ def run_job(job: dict) -> dict:
     def fine(path):
         scene = load(path)
         scene.steps.times = step_times()
+        for key, value in job["contact"].items():
+            setattr(scene.contacts[0], key, value)
         return scene
     fenicsx_mortar.load_scene = fine
     try:
@@ -141,9 +148,9 @@ def main() -> None:
             done[out.job.tag] = out.record
             print(f"[{out.job.tag}] {'completed' if out.record['completed'] else 'STOPPED'} "
                   f"in {out.record['wall']:.0f} s: {out.record['message'][:200]}", flush=True)
-        jobs = [pool.Job(dict(name=label.replace(" ", "_").replace(",", "").replace("=", ""),
-                              mu=mu, smoothing=sm, circle_ends=ce), tag=label)
-                for label, mu, sm, ce in RUNS]
+        jobs = [pool.Job(dict(name="".join(c if c.isalnum() else "_" for c in label),
+                              mu=mu, smoothing=sm, circle_ends=ce, contact=extra), tag=label)
+                for label, mu, sm, ce, extra in RUNS]
         pool.run("benchmarks.half_rings_sawtooth:run_job", jobs, finished,
                  workers=max(1, min(args.jobs, 2)), output=None)
         runs = []
