@@ -26,7 +26,8 @@ Mesh realizations: the same nominal mesh with h_c × (1 ± 0.3 %, − 0.6 %) —
 quads then differ node by node — shows how much of the a/10 numbers belong to one mesh.
 
 Writes the section between ``<!-- stiff-slave -->`` markers of docs/hertz.md (kept there by
-``benchmarks/hertz_refinement.py``) and ``results/hertz_stiff_slave/runs.json``.
+``benchmarks/hertz_refinement.py``) and ``results/hertz_stiff_slave/runs.json`` (``--redraw``
+rewrites the section from it).
 """
 from __future__ import annotations
 
@@ -183,6 +184,7 @@ def write_doc(runs: list[dict], wall: float) -> None:
             lines.append(f"| {r['label']} | {100 * c['dev_point_inside']:.2f} | "
                          f"{100 * c['dev_average_inside']:.2f} | {c['worst_at']:+.2f} | "
                          + ", ".join(f"{100 * v:+.2f}" for v in c["edge"]) + " |")
+    lines += ["", "What the numbers show:", ""] + observations(by)
     lines.append(MARK[1])
     section = "\n".join(lines) + "\n"
     text = DOC.read_text() if DOC.exists() else ""
@@ -194,16 +196,103 @@ def write_doc(runs: list[dict], wall: float) -> None:
     DOC.write_text(text)
 
 
+def observations(by: dict) -> list[str]:
+    """The section's conclusions, from the numbers (the runs present)."""
+    out = []
+    g = by.get
+    st, so = g("stiff slave, quads, a/10"), g("soft slave, quads, a/10")
+    if st and so:
+        out.append(f"* **The pairing is not the cause.** Block (stiff, finer overall) or disk as "
+                   f"the slave, a/10 quads: p_max/p₀ − 1 = {100 * st['p0_error']:+.2f} % / "
+                   f"{100 * so['p0_error']:+.2f} %, the centre node {100 * st['centre']:+.2f} % / "
+                   f"{100 * so['centre']:+.2f} %, L2 {100 * st['l2']:.2f} % / "
+                   f"{100 * so['l2']:.2f} %"
+                   + "".join(f"; a/{d}: {100 * g(f'stiff slave, quads, a/{d}')['p0_error']:+.2f} "
+                             f"% / {100 * g(f'soft slave, quads, a/{d}')['p0_error']:+.2f} %"
+                             for d in (20, 40) if g(f"stiff slave, quads, a/{d}")
+                             and g(f"soft slave, quads, a/{d}")) + ".")
+    ref = g("stiff slave, quads, a/40")
+    if ref:
+        out.append(f"* **The continuum problem is not Hertz's.** Refined to a/40 (98k dofs) both "
+                   f"pairings converge to p_max/p₀ − 1 = {100 * ref['p0_error']:+.2f} % "
+                   f"(a/20: {100 * g('stiff slave, quads, a/20')['p0_error']:+.2f} %): finite "
+                   "bodies (the block is 9a deep, the half-disk loaded 18a above the contact) and "
+                   "finite strain (p₀/E of the disk 2.3 %) against Hertz's small-strain half-"
+                   "spaces. So |p_max/p₀ − 1| ≤ 1.0 % at a/10 holds only where the mesh's own "
+                   "error at the centre node happens to be negative: "
+                   + ", ".join(f"{100 * r['p0_error']:+.2f} %" for k, r in by.items()
+                               if k.startswith("stiff slave, quads, a/10") and "2 steps" not in k)
+                   + " on the four a/10 realizations below.")
+    reals = [r for k, r in by.items() if k.startswith("stiff slave, quads, a/10") and
+             "2 steps" not in k]
+    pm = [100 * r["p0_error"] for r in reals]
+    l2 = [100 * r["l2"] for r in reals]
+    if st and len(reals) > 1:
+        c = st.get("vs_reference", {})
+        out.append(f"* **The +1.5 % belongs to one mesh.** The same nominal mesh with h_c changed "
+                   f"by 0.3–0.6 % (four gmsh realizations): p_max/p₀ − 1 from {min(pm):+.2f} % to "
+                   f"{max(pm):+.2f} %, L2 from {min(l2):.2f} % to {max(l2):.2f} %. On the "
+                   "issue's realization p_max sits at the node next to the centre, x/a = "
+                   f"{st['at']:+.2f}, and that node and the next deviate from the converged "
+                   f"solution's hat averages by up to {100 * c.get('dev_average_inside', 0):.2f} % "
+                   f"of p₀ (at x/a = {c.get('worst_at', 0):+.2f}), in both pairings alike: under "
+                   "the disk's contact surface there gmsh's quad recombination left an irregular "
+                   "node (the surface node at x/a = +0.20 is shared by three quads; the other "
+                   "realizations have none within |x| < 0.6a, and there every node inside "
+                   "0.9a is within about 1 % of p₀ of the converged averages and p_max is the "
+                   "centre node). Such nodes are common in these meshes (the B2 meshes of "
+                   "docs/hertz.md have 3 at a/10 and 4 at a/20 within the refined zone): a "
+                   "structured layer of quads along the contact surfaces would remove them; the "
+                   "generator is left as it is (every Hertz result would move).")
+    if st and "vs_reference" in st:
+        fl = [r["vs_reference"]["floor_average"] for r in reals if "vs_reference" in r]
+        out.append(f"* **The L2 metric has a floor at a/10.** A dual-basis multiplier is a hat "
+                   "average of the pressure, ∫N_j p/∫N_j, not its value at the node; with the "
+                   "converged solution's exact hat averages at these nodes the L2 error against "
+                   f"Hertz would be {100 * min(fl):.2f}–{100 * max(fl):.2f} % (with its point "
+                   f"values {100 * st['vs_reference']['floor_point']:.2f} %, with Hertz's own "
+                   f"point values {100 * st['vs_reference']['floor_hertz']:.2f} %); the runs "
+                   f"reach {min(l2):.2f}–{max(l2):.2f} %, within 0.1 percentage point of that "
+                   "floor. An L2 of 2.2 % at a/10 is below what nodal averages of the converged "
+                   "pressure can give. The dual basis at the edge of contact is not the cause: "
+                   "the quads' edge nodes lie "
+                   + ", ".join(f"{100 * min(r['vs_reference']['edge']):+.2f}" for r in reals
+                               if "vs_reference" in r and r["vs_reference"]["edge"])
+                   + " % of p₀ (the lowest per run) from the converged hat averages.")
+    tri = [g("stiff slave, triangles, a/10"), g("soft slave, triangles, a/10")]
+    if all(tri):
+        out.append(f"* Triangles (P1): p_max/p₀ − 1 = {100 * tri[0]['p0_error']:+.2f} % / "
+                   f"{100 * tri[1]['p0_error']:+.2f} % (stiff / soft slave), L2 "
+                   f"{100 * tri[0]['l2']:.2f} % / {100 * tri[1]['l2']:.2f} %: the stiffer P1 "
+                   "bulk narrows the contact (edge nodes 3–4 % of p₀ below the converged "
+                   "averages), whatever the pairing.")
+    two = g("stiff slave, quads, a/10, 2 steps")
+    if two and st:
+        out.append(f"* Newton: {st['newton'][0]} iterations in one load step; the issue's 11 were "
+                   f"the B2 scene's two load steps together ({' + '.join(map(str, two['newton']))})"
+                   "; Kratos: 7 in one step (its own quad mesh: +1.04 %, L2 2.50 %, issue 31; "
+                   "not rerun).")
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="a/10 only (no reference runs)")
+    ap.add_argument("--redraw", action="store_true", help="no solve: the section from the "
+                    "saved runs (results/hertz_stiff_slave/runs.json)")
     args = ap.parse_args()
     print(f"a = {A:.6f}, p0 = {P0:.4f}, E* = {E_STAR:.2f}", flush=True)
+    if args.redraw:
+        saved = json.loads((OUT / "runs.json").read_text())
+        write_doc(saved["runs"], saved["wall"])
+        print(f"wrote {DOC.relative_to(ROOT)} from the saved runs")
+        return
     t0 = time.perf_counter()
     runs = [run(label, div, **kw) for label, div, kw in plan(args.quick)]
     OUT.mkdir(parents=True, exist_ok=True)
-    (OUT / "runs.json").write_text(json.dumps(runs))
-    write_doc(runs, time.perf_counter() - t0)
+    wall = time.perf_counter() - t0
+    (OUT / "runs.json").write_text(json.dumps(dict(runs=runs, wall=wall)))
+    write_doc(runs, wall)
     print(f"wrote {DOC.relative_to(ROOT)} ({time.perf_counter() - t0:.0f} s)")
 
 
