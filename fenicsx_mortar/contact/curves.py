@@ -584,18 +584,23 @@ def span_basis(U: np.ndarray, span: np.ndarray, t0: np.ndarray, p: int) -> np.nd
     return N
 
 
-def _sparse_inverse(A: np.ndarray, block: int = 512, drop: float = 1e-17):
-    """Entries (rows, cols, values) of A⁻¹ for the banded (or cyclic banded) interpolation
-    matrix, by a sparse LU and blocks of unit right-hand sides; entries below ``drop``
-    times their column's maximum are left out (the inverse of a B-spline collocation
-    matrix decays geometrically away from the diagonal)."""
+def _sparse_inverse(A: np.ndarray, block: int = 512, drop: float = 1e-17, rhs=None):
+    """Entries (rows, cols, values) of A⁻¹ (or of A⁻¹ rhs, ``rhs`` a sparse matrix) for the
+    banded (or cyclic banded) interpolation matrix, by a sparse LU and blocks of right-hand
+    sides; entries below ``drop`` times their column's maximum are left out (the inverse of
+    a B-spline collocation matrix decays geometrically away from the diagonal)."""
     lu = spla.splu(sp.csc_matrix(A))
     n = A.shape[0]
+    rhs = None if rhs is None else sp.csc_matrix(rhs)
+    n_cols = n if rhs is None else rhs.shape[1]
     rows, cols, vals = [], [], []
-    for j0 in range(0, n, block):
-        j1 = min(j0 + block, n)
-        E = np.zeros((n, j1 - j0))
-        E[np.arange(j0, j1), np.arange(j1 - j0)] = 1.0
+    for j0 in range(0, n_cols, block):
+        j1 = min(j0 + block, n_cols)
+        if rhs is None:
+            E = np.zeros((n, j1 - j0))
+            E[np.arange(j0, j1), np.arange(j1 - j0)] = 1.0
+        else:
+            E = rhs[:, j0:j1].toarray()
         X = lu.solve(E)
         keep = np.abs(X) > drop * np.abs(X).max(axis=0, keepdims=True)
         r, c = np.nonzero(keep)
@@ -611,16 +616,19 @@ class BSplineParametrization:
 
     Built from node coordinates by :meth:`from_nodes` (docs/design.md §6.5):
     * chord-length parameters ū₀ = 0, ū_k = ū_{k−1} + |x_k − x_{k−1}|/r, ū_last = 1;
-    * open chain (n+1 nodes, clamped, degree p = min(3, n)): knots u₀ = … = u_p = 0,
-      u_{j+p} = (ū_j + … + ū_{j+p−1})/p for j = 1 … n − p, u_{m−p} = … = u_m = 1
-      (averaging, Piegl & Tiller eq. 9.8); n+1 control points;
+    * open chain (n+1 nodes, clamped, cubic for n ≥ 3): knots 0, 0, 0, 0, ū_1 … ū_{n−1},
+      1, 1, 1, 1 and n+3 control points, the two beyond the interpolation conditions set by
+      the end derivatives C′(0), C′(1) = dx/dū of the polynomial through the first (last)
+      min(5, n+1) nodes in ū (O(h⁴) slopes: the end segments keep the interior's accuracy;
+      not-a-knot ends had 2.7 × its gap error there); n < 3: the polynomial of degree n
+      through all nodes (knots 0 … 0, 1 … 1);
     * closed chain (n nodes, periodic, p = 3): knots at the parameters, extended
       periodically (u_{k+n} = u_k + 1); n control points, P_{k+n} = P_k (for odd degree the
       parameters are the centred averages of themselves, and every node sits on a knot: the
       classical periodic cubic spline, a cyclic tridiagonal interpolation system);
-    * control points from Σ_i B_{i,p}(ū_k) P_i = x_k: P = A⁻¹ X; ``point_map`` holds A⁻¹
-      (entries below 1e-17 of their column's maximum dropped: they decay like
-      0.27^distance).
+    * control points from Σ_i B_{i,p}(ū_k) P_i = x_k (and the end rows): P = A⁻¹ C X;
+      ``point_map`` holds A⁻¹ C (entries below 1e-17 of their column's maximum dropped:
+      they decay like 0.27^distance).
     """
 
     def __init__(self, chains, n_nodes: int):
@@ -646,13 +654,22 @@ class BSplineParametrization:
                 k = np.arange(-p, n + p + 1)
                 U = ubar[k % n] + np.floor_divide(k, n)
                 n_ctrl = n
+            elif n >= 3:
+                # knots at the parameters, and the end derivatives dx/dū of the quartic (a
+                # cubic on 4 nodes) through the end nodes in ū: exact to O(h⁴), so the end
+                # segments keep the interior's order and constant (not-a-knot ends had
+                # 2.7 × the interior's gap error and polluted the next segments)
+                p = 3
+                U = np.concatenate([np.zeros(4), ubar[1:n], np.ones(4)])
+                n_ctrl = n + 3
+                k = min(5, n + 1)
+                end = (_derivative_weights(ubar[:k], 0.0), _derivative_weights(ubar[-k:], 1.0))
             else:
-                p = min(3, n)
-                inner = [ubar[j:j + p].mean() for j in range(1, n - p + 1)]
-                U = np.concatenate([np.zeros(p + 1), inner, np.ones(p + 1)])
+                p = n
+                U = np.concatenate([np.zeros(p + 1), np.ones(p + 1)])
                 n_ctrl = n + 1
             chains.append(dict(nodes=nodes, segs=segs, closed=closed, p=p, ubar=ubar, U=U,
-                               n_ctrl=n_ctrl))
+                               n_ctrl=n_ctrl, end=None if closed or n < 3 else end))
         self = cls(chains, x.shape[0])
         self._tables(seg.shape[0])
         return self
@@ -672,36 +689,27 @@ class BSplineParametrization:
         return ext % ch["n_ctrl"] if ch["closed"] else ext
 
     def _tables(self, n_seg: int) -> None:
-        """Per segment: interior break points (ξ, +inf padded) and, per piece, the slot
-        weights as polynomials in ξ: W (n_seg, 3, 6, 4) with x(ξ) = Σ_s Σ_r W[s, r] ξ^r P_s;
-        the stencil (n_seg, 6) of global point indices; the point map."""
-        L = 6
-        self.breaks = np.full((n_seg, 2), np.inf)
-        self.W = np.zeros((n_seg, 3, L, 4))
+        """Per segment the slot weights as polynomials in ξ: W (n_seg, 4, 4) with
+        x(ξ) = Σ_s Σ_r W[s, r] ξ^r P_s (every segment is one knot span: the knots are at the
+        parameters); the stencil (n_seg, 4) of global point indices; the point map."""
+        L = 4
+        self.W = np.zeros((n_seg, L, 4))
         self.stencil = np.zeros((n_seg, L), dtype=np.int64)
         rows, cols, vals = [], [], []
         offset = 0
         for ch in self.chains:
             U, p, ubar, segs = ch["U"], ch["p"], ch["ubar"], ch["segs"]
             t_lo, t_hi = ubar[:-1], ubar[1:]
-            m_lo = self._span(ch, t_lo, True)
-            m_hi = self._span(ch, t_hi, False)
-            if np.any(m_hi - m_lo > 2):
-                raise AssertionError("B-spline: a data interval spans more than 3 knot spans")
+            m = self._span(ch, t_lo, True)
+            if np.any(self._span(ch, t_hi, False) != m):
+                raise AssertionError("B-spline: a data interval spans more than one knot span")
             du = t_hi - t_lo
-            first = m_lo - p                                   # first extended control index
-            for piece in range(3):
-                m = np.minimum(m_lo + piece, m_hi)
-                real = m_lo + piece <= m_hi
-                if piece > 0:
-                    self.breaks[segs[real], piece - 1] = ((U[m] - t_lo) / du)[real]
-                C = span_basis(U, m, t_lo, p)                 # powers of τ = t − ū_i
-                C = C * du[:, None, None] ** np.arange(p + 1)  # powers of ξ
-                for kk in range(p + 1):
-                    slot = m - p + kk - first
-                    self.W[segs, piece, slot, :p + 1] = np.where(real[:, None], C[:, kk], 0.0)
+            C = span_basis(U, m, t_lo, p)                     # powers of τ = t − ū_i
+            C = C * du[:, None, None] ** np.arange(p + 1)      # powers of ξ
+            for kk in range(p + 1):
+                self.W[segs, kk, :p + 1] = C[:, kk]
             for s in range(L):
-                ext = np.minimum(first + s, m_hi)              # pad: repeat the last point
+                ext = np.minimum(m - p + s, m)                 # pad: repeat the last point
                 self.stencil[segs, s] = offset + self._ctrl(ch, ext)
             # interpolation matrix A[k, i] = B_i(ū_k) at the data parameters
             nd = len(ch["nodes"])
@@ -711,7 +719,10 @@ class BSplineParametrization:
             A = np.zeros((nd, ch["n_ctrl"]))
             for kk in range(p + 1):
                 np.add.at(A, (np.arange(nd), self._ctrl(ch, mk - p + kk)), Bk[:, kk])
-            r, c, v = _sparse_inverse(A)
+            if ch["end"] is None:
+                r, c, v = _sparse_inverse(A)
+            else:
+                r, c, v = self._with_end_derivatives(ch, A)
             rows.append(offset + r)
             cols.append(ch["nodes"][c])
             vals.append(v)
@@ -724,6 +735,34 @@ class BSplineParametrization:
                                        shape=(self.n_points, self.n_nodes))
 
 
+    @staticmethod
+    def _with_end_derivatives(ch, A: np.ndarray, drop: float = 1e-17):
+        """Entries (control point, node, value) of the map nodes → control points of an
+        open chain with the end derivative conditions C′(0) = Σ w₀ x, C′(1) = Σ w₁ x: the
+        interpolation rows ``A`` and the two derivative rows (C′(0) = 3/u₄ (P₁ − P₀),
+        C′(1) = 3/(1 − u_{n−1}) (P_n − P_{n−1}), Piegl & Tiller eq. 3.7) solved for the
+        right-hand sides [x; Σ w₀ x; Σ w₁ x], still linear in the nodes."""
+        U, nd, nc = ch["U"], A.shape[0], ch["n_ctrl"]
+        w0, w1 = ch["end"]
+        k = w0.shape[0]
+        d0, d1 = 3.0 / U[4], 3.0 / (1.0 - U[nc - 1])
+        M = np.zeros((nd + 2, nc))
+        M[:nd] = A
+        M[nd, :2] = -d0, d0
+        M[nd + 1, nc - 2:] = -d1, d1
+        rhs = sp.vstack([sp.identity(nd),
+                         sp.csr_matrix((w0, (np.zeros(k), np.arange(k))), shape=(1, nd)),
+                         sp.csr_matrix((w1, (np.zeros(k), np.arange(nd - k, nd))),
+                                       shape=(1, nd))])
+        return _sparse_inverse(M, drop=drop, rhs=rhs)
+
+
+def _derivative_weights(t: np.ndarray, t0: float) -> np.ndarray:
+    """w with Σ w_i f(t_i) = q′(t0), q the polynomial through (t_i, f(t_i))."""
+    V = np.vander(t - t0, t.shape[0], increasing=True)
+    return np.linalg.solve(V.T, np.eye(t.shape[0])[1])
+
+
 @SMOOTHINGS.register("bspline")
 class BSpline(MasterCurve):
     """One global cubic B-spline per master chain, interpolating all its nodes (C2;
@@ -731,10 +770,11 @@ class BSpline(MasterCurve):
 
     The curve is parametrized per master segment by the local ξ of eq. 3.33,
         t = ū_i + ξ (ū_{i+1} − ū_i)   on segment i (the data interval [ū_i, ū_{i+1}]),
-    so x(ξ) is piecewise cubic with break points where knots fall inside the interval (at
-    most two: stencil of L = 6 control points; unused slots repeat a point with zero
-    weight); x′ = dx/dξ. Closest-point projection (Newton on f(t) = (x_s − x)·x′, here in
-    ξ, which has the same roots) with hand-over between segments (:mod:`.projection`).
+    one knot span (the knots are at the parameters), so x(ξ) is one cubic in the segment's
+    L = 4 control points (fewer for a chain of 1 or 2 segments: the unused slots repeat a
+    point with zero weight); x′ = dx/dξ. Closest-point projection (Newton on
+    f(t) = (x_s − x)·x′, here in ξ, which has the same roots) with hand-over between segments
+    (:mod:`.projection`).
 
     Parametrization and linearization. The parameters ū and knots (and with them the
     interpolation matrix A and ``point_map`` = A⁻¹) are a :class:`BSplineParametrization`
@@ -748,7 +788,7 @@ class BSpline(MasterCurve):
     holds for any X, only the parametrization stops being exactly chord-length.
     """
 
-    stencil_size = 6
+    stencil_size = 4
     c1_gap = True
     hat_test = True
 
@@ -758,11 +798,10 @@ class BSpline(MasterCurve):
             parametrization = BSplineParametrization.from_nodes(self.x, self.seg)
         self.parametrization = parametrization
         self.point_map = parametrization.point_map
-        # (24, n_seg·3): row 4s + r = weight of slot s, power r; column 3·segment + piece
+        # (16, n_seg): row 4s + r = weight of slot s, power r; column = segment
         W = parametrization.W
-        self._WT = np.ascontiguousarray(W.reshape(W.shape[0] * 3, 24).T)
+        self._WT = np.ascontiguousarray(W.reshape(W.shape[0], 16).T)
         self._W = W
-        self._breaks = parametrization.breaks
         self._stencil = parametrization.stencil
 
     def with_nodes(self, x):
@@ -772,14 +811,12 @@ class BSpline(MasterCurve):
         return self._stencil[np.asarray(seg_index, dtype=np.int64)]
 
     def derivatives(self, seg_index, xi, P, order):
-        seg = np.asarray(seg_index, dtype=np.int64)
-        xv = ad.value(xi)
-        piece = (xv >= self._breaks[seg, 0]).astype(np.int64) + (xv >= self._breaks[seg, 1])
-        return _horner_derivatives(self._piece_coefficients(seg, piece, P), xi, order)
+        return _horner_derivatives(self._coefficients(seg_index, P), xi, order)
 
-    def _piece_coefficients(self, seg, piece, P) -> list:
-        """Power coefficients C_r = Σ_s W_sr P_s of the pieces (linear in P: cheap jets)."""
-        W = self._WT[:, 3 * seg + piece]                        # (24, *B), contiguous rows
+    def _coefficients(self, seg_index, P) -> list:
+        """Power coefficients C_r = Σ_s W_sr P_s of the segment's cubic (linear in P: cheap
+        jets)."""
+        W = self._WT[:, np.asarray(seg_index, dtype=np.int64)]   # (16, *B), contiguous rows
         C = []
         for r in range(4):
             v = None
@@ -788,12 +825,6 @@ class BSpline(MasterCurve):
                 v = t if v is None else ad.add(v, t)
             C.append(v)
         return C
-
-    def pieces(self, seg_index, P):
-        seg = np.asarray(seg_index, dtype=np.int64)
-        breaks = np.moveaxis(self._breaks[seg], -1, 0)
-        return breaks, [self._piece_coefficients(seg, np.full(seg.shape, q), P)
-                        for q in range(3)]
 
     def node_points(self, seg_index, P):
         z = np.zeros(np.shape(seg_index))
