@@ -75,17 +75,17 @@ sys.path.insert(0, str(ROOT))
 from petsc4py import PETSc  # noqa: E402
 
 from fenicsx_mortar import _dolfinx as dx  # noqa: E402
-from fenicsx_mortar.bulk import build_bulk  # noqa: E402
+from fenicsx_mortar.scene.bulk import build_bulk  # noqa: E402
 from fenicsx_mortar.contact import assembly, mortar  # noqa: E402
 from fenicsx_mortar.contact.curves import Polyline  # noqa: E402
 from fenicsx_mortar.contact.registry import ENFORCEMENTS  # noqa: E402
 from fenicsx_mortar.contact.state import ContactState  # noqa: E402
 from fenicsx_mortar.contact.kernel import nodal_sum  # noqa: E402
 from fenicsx_mortar.contact.search import candidate_pairs  # noqa: E402
-from fenicsx_mortar.meshing import build_domain  # noqa: E402
+from fenicsx_mortar.scene.meshing import build_domain  # noqa: E402
 from fenicsx_mortar.scene import Scene, from_dict, load_scene  # noqa: E402
 from fenicsx_mortar.problem import ContactProblem  # noqa: E402
-from fenicsx_mortar.run import scene_pairs  # noqa: E402
+from fenicsx_mortar.scene.runner import scene_pairs  # noqa: E402
 from fenicsx_mortar.newton import NewtonSolver  # noqa: E402
 from fenicsx_mortar.stepping import LoadStepper  # noqa: E402
 from fenicsx_mortar.timings import Timings  # noqa: E402
@@ -103,7 +103,7 @@ CONTACT_PHASES = ("contact", "contact_search", "contact_kernel", "contact_insert
 
 
 def build(scene: Scene):
-    """mesh → bulk → contact → Newton solver, as fenicsx_mortar.run.solve wires them."""
+    """mesh → bulk → contact → Newton solver, as fenicsx_mortar.scene.runner.solve wires them."""
     scene.validate()
     dom = build_domain(scene)
     bulk = build_bulk(scene, dom)

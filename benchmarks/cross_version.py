@@ -76,7 +76,7 @@ def mesh_to_file(text: str, msh: Path) -> str:
     import tomllib
 
     import gmsh
-    from fenicsx_mortar.meshing import load_generator
+    from fenicsx_mortar.scene.meshing import load_generator
     mesh = tomllib.loads(text)["mesh"]
     gmsh.initialize()
     try:

@@ -31,7 +31,7 @@ __all__ = ["Body", "Contact", "ContactPair", "ContactProblem", "Cut", "Dirichlet
 
 
 def solve(scene: Scene, out: str | None = None, **kwargs):
-    """Run ``scene`` (see :func:`fenicsx_mortar.run.solve` for the arguments).
+    """Run ``scene`` (see :func:`fenicsx_mortar.scene.runner.solve` for the arguments).
 
     Args:
         scene: A validated :class:`Scene`.
@@ -41,7 +41,7 @@ def solve(scene: Scene, out: str | None = None, **kwargs):
     Returns:
         The run's ``Result`` (converged, message, steps, pairs, the displacement ``u``).
     """
-    from .run import solve as _solve
+    from .scene.runner import solve as _solve
     return _solve(scene, out, **kwargs)
 
 

@@ -201,7 +201,7 @@ def _command(args, ignored: list[str] = ()) -> int:
     (MPI_Abort) instead of leaving them waiting for the one that failed."""
     from mpi4py import MPI
 
-    from .parallel import BrokenOutput, Interrupted, RunError
+    from .scene.parallel import BrokenOutput, Interrupted, RunError
     from .scene import SceneError
     comm = MPI.COMM_WORLD
     if ignored and comm.rank == 0:
@@ -236,7 +236,7 @@ def _command(args, ignored: list[str] = ()) -> int:
 
 
 def _dispatch(args, comm) -> int:
-    from .guards import check_petsc_options
+    from .scene.guards import check_petsc_options
     from .scene import SceneError, load_scene, load_scene_json
     if args.command == "run" and args.restart is not None:
         if args.scene is not None:
@@ -255,7 +255,7 @@ def _dispatch(args, comm) -> int:
     else:
         scene = load_scene(args.scene)
     if args.command == "check":
-        from .meshing import build_domain
+        from .scene.meshing import build_domain
         check_petsc_options(scene.solver)
         dom = build_domain(scene, comm)
         if comm.rank == 0:
@@ -263,7 +263,7 @@ def _dispatch(args, comm) -> int:
                 print(f"{args.scene}: warning: {w}")
             print(f"{args.scene}: OK")
         return 0
-    from .run import solve
+    from .scene.runner import solve
 
     def show_warning(message, category, filename, lineno, file=None, line=None):
         # one line, from rank 0 (a library import routes warnings through logging, which
@@ -299,8 +299,8 @@ def _dispatch(args, comm) -> int:
 def _locked(out: Path, comm, key: str):
     """``out`` made (``--out``) and locked by rank 0 for the run: a second run into it is
     refused by name on every rank."""
-    from .output import locked, prepare_out
-    from .parallel import on_rank0
+    from .io.output import locked, prepare_out
+    from .scene.parallel import on_rank0
     with contextlib.ExitStack() as stack:
         def take() -> None:
             if key == "--out":
@@ -317,7 +317,7 @@ def _check_jit_cache(comm) -> None:
     (code run by the compiler) or put the cache anywhere. Raises RunError naming the place
     and the variable that sets it."""
     from . import _dolfinx as dx
-    from .parallel import RunError, agree
+    from .scene.parallel import RunError, agree
 
     def probe() -> None:
         import tempfile
@@ -429,8 +429,8 @@ class _Interrupt:
 
     @staticmethod
     def _raise(signum, frame):
-        from .parallel import Interrupted
-        run = sys.modules.get("fenicsx_mortar.run")   # not imported yet: still reading
+        from .scene.parallel import Interrupted
+        run = sys.modules.get("fenicsx_mortar.scene.runner")   # not imported yet: still reading
         doing = run.phase() if run else "reading the scene"
         raise Interrupted(f"interrupted by {signal.Signals(signum).name} while {doing}; "
                        "what converged is kept")

@@ -18,9 +18,9 @@ import fenicsx_mortar as fm
 from conftest import ROOT
 from fenicsx_mortar import _dolfinx as dx
 from fenicsx_mortar import load_scene
-from fenicsx_mortar.bulk import build_bulk
-from fenicsx_mortar.meshing import build_domain
-from fenicsx_mortar.run import scene_pairs
+from fenicsx_mortar.scene.bulk import build_bulk
+from fenicsx_mortar.scene.meshing import build_domain
+from fenicsx_mortar.scene.runner import scene_pairs
 
 
 @pytest.fixture(scope="module")
@@ -292,9 +292,9 @@ def test_the_command_line_reaches_the_solver_under_its_prefix(tmp_path):
         "import sys\nimport petsc4py\npetsc4py.init(sys.argv)\n"
         "from conftest import ROOT\n"
         "import fenicsx_mortar as fm\nfrom fenicsx_mortar import load_scene\n"
-        "from fenicsx_mortar.bulk import build_bulk\n"
-        "from fenicsx_mortar.meshing import build_domain\n"
-        "from fenicsx_mortar.run import scene_pairs\n"
+        "from fenicsx_mortar.scene.bulk import build_bulk\n"
+        "from fenicsx_mortar.scene.meshing import build_domain\n"
+        "from fenicsx_mortar.scene.runner import scene_pairs\n"
         "scene = load_scene(ROOT / 'tests/bad_input/_base.toml')\n"
         "dom = build_domain(scene)\nbulk = build_bulk(scene, dom)\n"
         "pairs = scene_pairs(scene, dom, bulk.V)\n"

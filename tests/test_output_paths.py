@@ -6,7 +6,7 @@ import os
 
 import pytest
 
-from fenicsx_mortar.output import locked, path_for, write_file
+from fenicsx_mortar.io.output import locked, path_for, write_file
 from fenicsx_mortar.scene import SceneError
 
 

@@ -17,8 +17,7 @@ LIBRARY = ("ContactPair", "ContactProblem", "LoadStepper", "SolverSettings", "St
 #: the core: problem, Newton, stepping, acceptance, contact kernels (never the scenes)
 CORE = ("problem", "newton", "stepping", "acceptance", "settings", "petsc_options", "system",
         "linesearch", "timings", "contact")
-SCENE_LAYER = {"scene", "meshing", "bulk", "materials", "run", "guards", "checkpoint",
-               "output", "cli", "pictures", "parallel", "mshfile", "meshes"}
+SCENE_LAYER = {"scene", "io", "cli", "meshes"}
 
 
 def public_callables():

@@ -26,10 +26,10 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from . import _dolfinx as dx
+from .. import _dolfinx as dx
 from .output import write_file
-from .parallel import agree, on_rank0
-from .scene import SceneError, Steps, from_dict, json_loads
+from ..scene.parallel import agree, on_rank0
+from ..scene.model import SceneError, Steps, from_dict, json_loads
 
 FILE = "checkpoint.npz"
 #: the arrays every checkpoint has (the pairs add "pair<i>_<key>")

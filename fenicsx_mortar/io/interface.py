@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .contact.output import interface_table
+from ..contact.output import interface_table
 from .output import save_figure, write_file
 
 

@@ -11,10 +11,10 @@ import numpy as np
 import ufl
 from mpi4py import MPI
 
-from . import _dolfinx as dx
+from .. import _dolfinx as dx
 from .materials import LAWS, Law, lame
 from .meshing import Domain
-from .scene import Scene, SceneError
+from .model import Scene, SceneError
 from .supports import point_vertices
 
 _COMPONENTS = ("x", "y")

@@ -12,9 +12,9 @@ from __future__ import annotations
 import numpy as np
 from mpi4py import MPI
 
-from . import _dolfinx as dx
-from . import petsc_options as po
-from .scene import Scene, SceneError, SolverSettings
+from .. import _dolfinx as dx
+from .. import petsc_options as po
+from .model import Scene, SceneError, SolverSettings
 
 #: atol against the loads' residual scale: above, u = 0 passes as converged; below, it is
 #: round-off

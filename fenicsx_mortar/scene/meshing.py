@@ -8,10 +8,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from mpi4py import MPI
 
-from . import _dolfinx as dx
-from . import mshfile, supports
+from .. import _dolfinx as dx
+from ..io import mshfile
+from . import supports
 from .parallel import wait_for_all
-from .scene import LIMITS, Scene, SceneError, as_list
+from .model import LIMITS, Scene, SceneError, as_list
 
 
 @dataclass

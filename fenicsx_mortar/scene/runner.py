@@ -22,16 +22,17 @@ from typing import Callable, TypeVar
 
 from mpi4py import MPI
 
-from . import _dolfinx as dx
-from . import checkpoint, guards, output
-from . import interface_files
+from .. import _dolfinx as dx
+from ..io import checkpoint, output
+from ..io import interface as interface_files
+from . import guards
 from .bulk import Bulk, StressOutput, build_bulk
 from .meshing import Domain, build_domain
 from .parallel import BrokenOutput, RankOSError, RunError, agree, on_rank0
-from .scene import Scene, SceneError
-from .newton import StepResult
-from .stepping import Cut, Event, LoadStepper, Retried, StepDone, StepStarted
-from .timings import Timings
+from .model import Scene, SceneError
+from ..newton import StepResult
+from ..stepping import Cut, Event, LoadStepper, Retried, StepDone, StepStarted
+from ..timings import Timings
 
 T = TypeVar("T")
 
@@ -175,7 +176,7 @@ def build(scene: Scene, comm: MPI.Comm, timings: Timings):
 def _problem(scene: Scene, dom: Domain, bulk: Bulk, pairs: list, timings: Timings,
              stop: "_StopRequest"):
     """The scene's :class:`~.problem.ContactProblem` (its acceptance checks compile)."""
-    from .problem import ContactProblem
+    from ..problem import ContactProblem
     with timings("jit"), _jit_cache_kept_whole():
         # a prefix of its own: no option of the environment reaches the scene's solver
         return ContactProblem(
@@ -377,7 +378,7 @@ def _kept(kept: dict) -> str:
 def scene_pairs(scene: Scene, dom: Domain, V) -> list:
     """One :class:`~.contact.pair.ContactPair` per contact of the scene, from the mesh's named
     groups (a scene without contact never imports the contact package)."""
-    from .contact.pair import ContactPair
+    from ..contact.pair import ContactPair
     moduli = {dom.cell_groups[b.group]: b.material.E for b in scene.bodies}
     pairs = []
     for i, c in enumerate(scene.contacts):

@@ -22,8 +22,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from mpi4py import MPI
 
-from . import _dolfinx as dx
-from .scene import Scene, SceneError, as_list
+from .. import _dolfinx as dx
+from .model import Scene, SceneError, as_list
 
 if TYPE_CHECKING:
     from .meshing import Domain
