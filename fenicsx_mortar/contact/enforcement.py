@@ -92,8 +92,25 @@ class Enforcement:
         c = np.maximum(c - self.epsilon0 * self.gap_resolution, 0.0)
         return c / p.max() if p.max(initial=0.0) > 0 else c
 
-    def kkt_residual(self, g: np.ndarray, A: np.ndarray, p: np.ndarray) -> float:
+    def kkt_residual(self, g: np.ndarray, A: np.ndarray, p: np.ndarray,
+                     tangential=None) -> float:
+        """The largest complementarity (:meth:`complementarity`) over the nodes.
+
+        Args:
+            g, A, p: the nodal weighted gaps, areas and pressures.
+            tangential: the friction's :class:`~.friction.TangentialState`, or None; its
+                ``kkt`` enters where this method augments the traction (ALM).
+
+        Returns:
+            max_j c_j, relative to the pressure scale.
+        """
         return float(self.complementarity(g, A, p).max(initial=0.0))
+
+    def annotate(self, st) -> None:
+        """Tell the friction law of the state ``st`` how the tangential traction is enforced
+        (``st.traction_multiplier``, ``st.epsilon_t``): here not at all, a penalty-regularized
+        stick (the moving cone of :mod:`.friction`)."""
+        st.gap_resolution = self.gap_resolution
 
     # -- contributions to the system --------------------------------------------------
     def residual(self, st, weight: np.ndarray) -> np.ndarray:
@@ -115,8 +132,16 @@ class Enforcement:
         return assembly.normal_tangent(st, -law.dp_dg * act, law.dp_dA * act, law.p * weight)
 
     # -- between Newton solves and steps ----------------------------------------------
-    def augment(self, g: np.ndarray, A: np.ndarray, p: np.ndarray) -> bool:
-        """Between converged Newton solves; True when another solve is needed."""
+    def augment(self, g: np.ndarray, A: np.ndarray, p: np.ndarray, tangential=None) -> bool:
+        """Between converged Newton solves; True when another solve is needed.
+
+        Args:
+            g, A, p: the nodal weighted gaps, areas and pressures of the converged solve.
+            tangential: the friction's :class:`~.friction.TangentialState`, or None.
+
+        Returns:
+            Whether to solve again (the multipliers or ε changed).
+        """
         return False
 
     def begin_step(self) -> None:
@@ -149,7 +174,7 @@ class Penalty(Enforcement):
     failed; with continuation 3 solves)."""
     growth = 10.0
 
-    def augment(self, g: np.ndarray, A: np.ndarray, p: np.ndarray) -> bool:
+    def augment(self, g: np.ndarray, A: np.ndarray, p: np.ndarray, tangential=None) -> bool:
         if self.epsilon[0] >= self.epsilon0:
             return False
         self.epsilon[:] = min(self.epsilon[0] * self.growth, self.epsilon0)
@@ -158,8 +183,8 @@ class Penalty(Enforcement):
 
 @ENFORCEMENTS.register("alm")
 class AugmentedLagrangian(Enforcement):
-    """Uzawa: after each converged Newton solve p̂ ← p, until the KKT residual is below
-    ``tolerance``; the converged answer does not depend on ε.
+    """Uzawa: after each converged Newton solve p̂ ← p (and with friction t̂ ← t), until
+    the KKT residual is below ``tolerance``; the converged answer does not depend on ε.
 
     Each update shrinks node j's constraint error by about k_j/(k_j + ε_j A_j) (k_j: the
     local stiffness of the bodies), so a moderate ε₀ keeps the first, hardest Newton solve
@@ -170,7 +195,12 @@ class AugmentedLagrangian(Enforcement):
     stays at the level of the other nodes. The later solves start next to the answer,
     where a stiff ε does no harm. The ALM answer does not depend on ε, and a start stiffer
     than the bodies makes the first Newton solve fragile (Hertz at h = a/4 fails from
-    10 E/h): ε₀ is at most the pair's E/h (``start``)."""
+    10 E/h): ε₀ is at most the pair's E/h (``start``).
+
+    With friction the tangential traction is augmented too (docs/design.md §5): the law
+    sees the trial t̂_j + ε_j g_T,j with g_T,j the slip of the load step, as with the
+    multipliers of :class:`LagrangeMultipliers`, and t̂ is the Uzawa multiplier, so stick
+    converges to zero slip instead of a penalty-regularized elastic slip t/ε_T."""
     growth, max_growth = 10.0, 100.0
 
     def __init__(self, epsilon: float, n_nodes: int, tolerance: float,
@@ -179,12 +209,38 @@ class AugmentedLagrangian(Enforcement):
             epsilon = min(epsilon, start)
         super().__init__(epsilon, n_nodes, tolerance, gap_resolution, start)
         self._last = np.full(self.epsilon.shape, np.inf)
+        #: t̂, the tangential traction's Uzawa multiplier (friction only)
+        self.traction = np.zeros(n_nodes)
+        self._converged_traction = self.traction.copy()
 
-    def augment(self, g: np.ndarray, A: np.ndarray, p: np.ndarray) -> bool:
+    def annotate(self, st) -> None:
+        super().annotate(st)
+        st.traction_multiplier, st.epsilon_t = self.traction, self.epsilon
+
+    def _tangential(self, p: np.ndarray, tangential) -> np.ndarray | None:
+        """The friction's complementarity per node relative to the pressure scale, as
+        :meth:`complementarity` (None without friction)."""
+        if tangential is None:
+            return None
+        scale = p.max(initial=0.0)
+        return tangential.kkt / scale if scale > 0 else tangential.kkt
+
+    def kkt_residual(self, g: np.ndarray, A: np.ndarray, p: np.ndarray,
+                     tangential=None) -> float:
+        c = self.complementarity(g, A, p).max(initial=0.0)
+        ct = self._tangential(p, tangential)
+        return float(c if ct is None else max(c, ct.max(initial=0.0)))
+
+    def augment(self, g: np.ndarray, A: np.ndarray, p: np.ndarray, tangential=None) -> bool:
         c = self.complementarity(g, A, p)
+        ct = self._tangential(p, tangential)
+        if ct is not None:
+            c = np.maximum(c, ct)
         if c.max(initial=0.0) <= self.tolerance:
             return False
         self.multiplier = p.copy()
+        if tangential is not None:
+            self.traction = tangential.t.copy()
         seen = A > 0
         if seen.any():
             cap = self.max_growth * self.epsilon0 * np.maximum(
@@ -198,6 +254,27 @@ class AugmentedLagrangian(Enforcement):
     def begin_step(self) -> None:
         super().begin_step()
         self._last[:] = np.inf
+
+    def accept(self) -> None:
+        super().accept()
+        self._converged_traction = self.traction.copy()
+
+    def reject(self) -> None:
+        super().reject()
+        self.traction = self._converged_traction.copy()
+
+    def state_dict(self) -> dict[str, np.ndarray]:
+        # (n, 2) [p̂, t̂] like the multipliers' λ; a 1D p̂ (older checkpoints) loads too
+        return {"multiplier": np.stack([self.multiplier, self.traction], axis=1)}
+
+    def load_state_dict(self, d: dict[str, np.ndarray]) -> None:
+        m = np.array(d["multiplier"], dtype=float)
+        if m.ndim == 2:
+            m, self.traction = m[:, 0].copy(), m[:, 1].copy()
+        else:
+            self.traction = np.zeros_like(m)
+        super().load_state_dict({"multiplier": m})
+        self._converged_traction = self.traction.copy()
 
 
 @ENFORCEMENTS.register("lagrange")
@@ -240,6 +317,11 @@ class LagrangeMultipliers(Enforcement):
     @multiplier.setter
     def multiplier(self, value) -> None:
         self.lam[:, 0] = value
+
+    def annotate(self, st) -> None:
+        super().annotate(st)
+        st.multipliers, st.multiplier_scale = self.lam, self.scale
+        st.traction_multiplier = self.lam[:, 1]
 
     def accept(self) -> None:
         self._converged_lam = self.lam.copy()
@@ -287,5 +369,7 @@ class LagrangeMultipliers(Enforcement):
         K_ll = sp.diags(np.stack([s * (1.0 - law.active), s], axis=1).ravel())
         return sp.bmat([[K_uu, K_ul @ E.T], [K_lu, K_ll]], format="coo")
 
-    def kkt_residual(self, g: np.ndarray, A: np.ndarray, p: np.ndarray) -> float:
+    def kkt_residual(self, g: np.ndarray, A: np.ndarray, p: np.ndarray,
+                     tangential=None) -> float:
+        # the normal part: the friction rows C_t are solved with the rest by Newton
         return super().kkt_residual(g, A, p)

@@ -92,6 +92,10 @@ class TangentialState(NamedTuple):
     dt_dp: np.ndarray          # ∂t/∂p
     proj: tuple                # (nodes, segments, ξ̄, |a|) of the slave nodes' projections
     dt_dtrial: np.ndarray      # ∂t/∂(trial traction): ∂t/∂λ_t with multipliers
+    #: |t − T(t + ε_T g_T)| per node (T the return map, ε_T the law's fixed one), beyond
+    #: round-off: zero iff the law holds (stick: no slip; slip: on the cone, along the
+    #: slip). None where the traction is not augmented (penalty: the moving cone)
+    kkt: np.ndarray | None = None
 
 
 @FRICTION_LAWS.register("none")
@@ -109,7 +113,7 @@ class Frictionless:
     def residual(self, st, weight: np.ndarray):
         return None
 
-    def tangent(self, st, weight: np.ndarray, epsilon: np.ndarray):
+    def tangent(self, st, weight: np.ndarray):
         return None
 
     def decision(self, st) -> np.ndarray | int:
@@ -172,20 +176,29 @@ class Coulomb(Frictionless):
                                   self.ref_xi[nodes])
         gT = surface.owned_sum(nodal_sum(slip, surface.n))
         self._surface = surface
-        if st.multipliers is not None:
-            # λ_t carries the traction; g_T is the slip since the last step's end (from where
-            # the anchoring left it: see accept)
+        eps = self.epsilon_t if st.epsilon_t is None else st.epsilon_t
+        # a trial traction within round-off of the cone's tip is no slip (traction)
+        self.resolution = eps * st.gap_resolution
+        hat = st.traction_multiplier
+        if hat is not None:
+            # λ_t (or the Uzawa t̂) carries the traction; g_T is the slip since the last
+            # step's end (from where the anchoring left it: see accept)
             gT = gT - self._g0
-            trial = st.multipliers[:, 1] + self.epsilon_t * gT
+            trial = hat + eps * gT
         else:
-            trial = self.epsilon_t * gT
+            trial = eps * gT
         t, status, dt_dtrial, dt_dp = self.traction(trial, st.p, st.active)
-        if st.multipliers is not None:
+        kkt = None
+        if hat is not None:
             t, status, dt_dtrial, dt_dp = self._on_the_cone(trial, st.p, t, status,
                                                             dt_dtrial, dt_dp)
+            e0 = self.epsilon_t
+            kkt = np.maximum(np.abs(t - self.traction(t + e0 * gT, st.p, st.active)[0])
+                             - e0 * st.gap_resolution, 0.0)
         _, a = curve.evaluate(segs, xi, P)
-        st.tangential = TangentialState(slip, gT, t, status, self.epsilon_t * dt_dtrial,
-                                        dt_dp, (nodes, segs, xi, np.hypot(*a)), dt_dtrial)
+        st.tangential = TangentialState(slip, gT, t, status, eps * dt_dtrial,
+                                        dt_dp, (nodes, segs, xi, np.hypot(*a)), dt_dtrial,
+                                        kkt)
 
     def anchor_missing(self, nodes: np.ndarray, seg: np.ndarray, xi: np.ndarray) -> None:
         """Nodes without a reference (first contact) take their current projection."""
@@ -197,17 +210,22 @@ class Coulomb(Frictionless):
         """The return map of the trial traction (ε_T g_T, plus λ_t with multipliers):
         (t, status, ∂t/∂trial, ∂t/∂p) per node."""
         # Φ ≤ 0 sticks, so a node at rest (g_T = 0, p = 0: the first iterate of a body held
-        # only by contact) gets the tangential stiffness instead of none
+        # only by contact) gets the tangential stiffness instead of none; so does a node
+        # whose p and trial are zero to round-off (an exactly touching start: p = −7e-18
+        # and a round-off slip made it slip without stiffness, the Newton matrix singular
+        # along the slip, and the body was thrown out of contact)
         # a node the moving cone left exactly on the cone (every slipping node at the start
         # of a step) sticks: deciding that tie by round-off made the first Newton direction
         # (and the iteration count) differ between serial and MPI runs
         # with mu = 0 there is no cone to stick in: every active node slips with t = 0
-        slip = active & ((np.abs(trial) - self.mu * p > 1e-9 * self.mu * p) | (self.mu == 0.0))
+        r = self.mu * np.maximum(p, 0.0)
+        noise = getattr(self, "resolution", 0.0)
+        slip = active & ((np.abs(trial) - r > 1e-9 * r + noise) | (self.mu == 0.0))
         stick = active & ~slip
         sign = np.sign(trial)
-        t = np.where(stick, trial, np.where(slip, self.mu * p * sign, 0.0))
+        t = np.where(stick, trial, np.where(slip, r * sign, 0.0))
         dt_dtrial = np.where(stick, 1.0, 0.0)
-        dt_dp = np.where(slip, self.mu * sign, 0.0)
+        dt_dp = np.where(slip & (p > 0), self.mu * sign, 0.0)
         status = np.where(stick, STICK, np.where(slip, SLIP, INACTIVE))
         return t, status, dt_dtrial, dt_dp
 
@@ -227,17 +245,15 @@ class Coulomb(Frictionless):
         return t, status, dt_dtrial, dt_dp
 
     # -- contributions --------------------------------------------------------------------
-    def _terms(self, st, weight: np.ndarray, epsilon, tangent: bool):
+    def _terms(self, st, weight: np.ndarray, tangent: bool):
         ts = st.tangential
-        return assembly.friction_terms(
-            ts.slip, ts.t, ts.dt_dg, ts.dt_dp, st.A, st.g, st.active, st.G, st.G_area,
-            epsilon, st.n_slave, st.n_coords, weight, tangent, st.layouts)
+        return assembly.friction_terms(st, ts.slip, ts.t, ts.dt_dg, ts.dt_dp, weight, tangent)
 
     def residual(self, st, weight: np.ndarray) -> np.ndarray:
-        return st.to_nodes(self._terms(st, weight, None, tangent=False)[0])
+        return st.to_nodes(self._terms(st, weight, tangent=False)[0])
 
-    def tangent(self, st, weight: np.ndarray, epsilon: np.ndarray) -> sp.spmatrix:
-        K = st.to_nodes(K=self._terms(st, weight, epsilon, tangent=True)[1])
+    def tangent(self, st, weight: np.ndarray) -> sp.spmatrix:
+        K = st.to_nodes(K=self._terms(st, weight, tangent=True)[1])
         if st.multipliers is None:
             return K
         # with multipliers (docs/design.md §5a): C_t = s (λ_t − t), t(λ_t + ε_T g_T, p(λ_n))
@@ -286,7 +302,7 @@ class Coulomb(Frictionless):
         the step."""
         ts = st.tangential
         nodes, segs, xi, length = ts.proj
-        if st.multipliers is not None:
+        if st.traction_multiplier is not None:
             self.ref_seg[nodes], self.ref_xi[nodes] = segs, xi
             self._committed = (self.ref_seg.copy(), self.ref_xi.copy())
             self._status = ts.status.copy()
@@ -317,11 +333,16 @@ class Coulomb(Frictionless):
         self.ref_seg, self.ref_xi = (a.copy() for a in self._committed)
 
     def state_dict(self) -> dict[str, np.ndarray]:
-        return {"ref_seg": self.ref_seg, "ref_xi": self.ref_xi}
+        return {"ref_seg": self.ref_seg, "ref_xi": self.ref_xi, "g0": self._g0,
+                "status": self._status}
 
     def load_state_dict(self, d: dict[str, np.ndarray]) -> None:
         self.ref_seg = np.array(d["ref_seg"], dtype=np.int64)
         self.ref_xi = np.array(d["ref_xi"], dtype=float)
+        # (checkpoints before these were kept start the step from g_T = 0 and no status)
+        self._g0 = np.array(d.get("g0", np.zeros_like(self.ref_xi)), dtype=float)
+        self._status = np.array(d.get("status", np.full(self.ref_seg.shape, INACTIVE)),
+                                dtype=self._status.dtype)
         # the loaded history becomes the committed one (reject() restores from it)
         self._committed = (self.ref_seg.copy(), self.ref_xi.copy())
         self.reject()
