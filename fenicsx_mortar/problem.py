@@ -57,6 +57,8 @@ class ContactProblem:
         self.timings = timings if timings is not None else Timings()
         for p in self.pairs:
             p.timings = self.timings
+            # the ALM's KKT test asks no more of the gaps than this tolerance resolves
+            p.enforcement.force_resolution = settings.atol
         matrix = None
         if self.pairs:
             with self.timings("contact"):

@@ -35,7 +35,8 @@ from .kernel import NodalContributions, nodal_sum
 from .projection import closest_segments
 from .registry import FRICTION_LAWS
 
-STICK, SLIP, INACTIVE = 1, 2, 0
+#: node status; CLOSING: in contact since the step's start, not slipping: no traction yet
+STICK, SLIP, INACTIVE, CLOSING = 1, 2, 0, 3
 
 
 def slip_contributions(xs: np.ndarray, xm: np.ndarray, curve, nodes: np.ndarray,
@@ -148,6 +149,8 @@ class Coulomb(Frictionless):
     node's reference point (segment, ξ) on the master."""
 
     path_dependent = True
+    #: ε_T of a node in the step it closes, relative to the law's (see update)
+    closing_stiffness = 1e-3
 
     def __init__(self, mu: float, epsilon_t: float, n_slave: int):
         self.mu, self.epsilon_t = float(mu), float(epsilon_t)
@@ -157,6 +160,7 @@ class Coulomb(Frictionless):
         self._segment = np.full(n_slave, -1, dtype=np.int64)  # last projection segment
         self._status = np.full(n_slave, INACTIVE)   # each node's status at the last step
         self._g0 = np.zeros(n_slave)                 # g_T at the anchor (multipliers)
+        self._open: np.ndarray | None = None         # out of contact at the step's start
 
     # -- kinematics ---------------------------------------------------------------------
     def update(self, st, surface) -> None:
@@ -184,19 +188,40 @@ class Coulomb(Frictionless):
             # λ_t (or the Uzawa t̂) carries the traction; g_T is the slip since the last
             # step's end (from where the anchoring left it: see accept)
             gT = gT - self._g0
-            trial = hat + eps * gT
-        else:
-            trial = eps * gT
+        if self._open is None:      # the first iterate of the step: its start
+            self._open = ~st.active
+        trial = eps * gT if hat is None else hat + eps * gT
         t, status, dt_dtrial, dt_dp = self.traction(trial, st.p, st.active)
-        kkt = None
         if hat is not None:
             t, status, dt_dtrial, dt_dp = self._on_the_cone(trial, st.p, t, status,
                                                             dt_dtrial, dt_dp)
+        dt_dg = eps * dt_dtrial
+        # a node that closes during the step was anchored at the step's start, its gap
+        # open: the relative motion of its approach is no slip (on a curved master its
+        # closest point also drifts as the gap shrinks), and held as stick it stayed as a
+        # tangential traction of up to 0.2 mu p0 after a press. It sticks from where it
+        # closed, its place at the step's end (accept); in the step it closes only a
+        # spring closing_stiffness × ε_T holds it (no multiplier): it slips if the step slides
+        # it far, and a body held along the surface by friction alone is not left free
+        closing = self._open & st.active
+        if closing.any():
+            kappa = self.closing_stiffness * eps
+            tc, sc, dc, pc = self.traction(kappa * gT, st.p, st.active)
+            t = np.where(closing, tc, t)
+            status = np.where(closing & (sc == STICK), CLOSING, np.where(closing, sc, status))
+            dt_dg = np.where(closing, kappa * dc, dt_dg)
+            dt_dtrial = np.where(closing, 0.0, dt_dtrial)
+            dt_dp = np.where(closing, pc, dt_dp)
+        kkt = None
+        if hat is not None:
             e0 = self.epsilon_t
-            kkt = np.maximum(np.abs(t - self.traction(t + e0 * gT, st.p, st.active)[0])
-                             - e0 * st.gap_resolution, 0.0)
+            kkt = np.abs(t - self.traction(t + e0 * gT, st.p, st.active)[0])
+            # round-off and the Newton tolerance as for the normal part (a slip's force is
+            # A ε_T g_T where the gap's is ε g̃: the same noise, ε_T = ε)
+            kkt = np.where(closing, 0.0, np.maximum(
+                kkt - e0 * (st.gap_resolution + st.gap_noise), 0.0))
         _, a = curve.evaluate(segs, xi, P)
-        st.tangential = TangentialState(slip, gT, t, status, eps * dt_dtrial,
+        st.tangential = TangentialState(slip, gT, t, status, dt_dg,
                                         dt_dp, (nodes, segs, xi, np.hypot(*a)), dt_dtrial,
                                         kkt)
 
@@ -283,7 +308,7 @@ class Coulomb(Frictionless):
     # -- outputs ------------------------------------------------------------------------
     def interface(self, st) -> dict[str, np.ndarray]:
         ts = st.tangential
-        names = {STICK: "stick", SLIP: "slip", INACTIVE: "inactive"}
+        names = {STICK: "stick", SLIP: "slip", INACTIVE: "inactive", CLOSING: "closing"}
         return dict(t_tangential=ts.t, slip=ts.gT,
                     status=np.array([names[int(k)] for k in ts.status]))
 
@@ -319,8 +344,10 @@ class Coulomb(Frictionless):
             return
         t, status = ts.t[nodes], ts.status[nodes]
         ref_seg, ref_xi = self.ref_seg.copy(), self.ref_xi.copy()
+        # a node that closed in the step keeps only its elastic slip t/ε_T, as a slipping
+        # one: its anchor moves to where it closed (_step_start)
         slipping = status == SLIP
-        off = status == INACTIVE
+        off = (status == INACTIVE) | (status == CLOSING)
         n = nodes[slipping | off]
         ref_seg[n] = segs[slipping | off]
         # |a| of the current segment turns the elastic slip t/ε_T into a parameter offset
@@ -328,6 +355,9 @@ class Coulomb(Frictionless):
             slipping, t / (self.epsilon_t * length), 0.0)[slipping | off]
         self.ref_seg, self.ref_xi = ref_seg, ref_xi
         self._committed = (ref_seg.copy(), ref_xi.copy())
+
+    def begin_step(self) -> None:
+        self._open = None   # taken from the step's first iterate: its start
 
     def reject(self) -> None:
         self.ref_seg, self.ref_xi = (a.copy() for a in self._committed)

@@ -44,6 +44,8 @@ class ContactState:
     epsilon_t: np.ndarray | None = None
     #: the smallest average gap round-off in the coordinates can resolve (the enforcement's)
     gap_resolution: float = 0.0
+    #: per node, the gap Newton's residual tolerance leaves unresolved (the enforcement's)
+    gap_noise: np.ndarray | float = 0.0
 
     @property
     def n_slave(self) -> int:
