@@ -239,8 +239,9 @@ def plot(runs: list[dict], path: Path) -> None:
                 x = x - np.sum(x * p) / np.sum(p)
                 o = np.argsort(x)
                 mark = {"lagrange": "o", "alm": "x"}.get(r["enforcement"], "+")
+                ratio = e["T"] / (0.3 * e["P"])
                 ax.plot(x[o] / e["a"], np.array(e["q"])[o] / (0.3 * e["p0"]), mark, ms=3,
-                        color=colour, label=f"{r['enforcement']} T/μN={e['T'] / (0.3 * e['P']):.2f}")
+                        color=colour, label=f"{r['enforcement']} T/μN={ratio:.2f}")
                 if r["enforcement"] == "lagrange":
                     xs = np.linspace(-1.2, 1.2, 600)
                     ax.plot(xs, traction(xs * e["a"], e["a"], e["c_exact"] * e["a"], e["p0"],
