@@ -227,6 +227,7 @@ class StepGuard:
                                             scene.solver.quadrature_degree, vertices=True)
         self.cells = np.arange(dx.num_owned_cells(self.msh), dtype=np.int32)
         names = {dom.cell_groups[b.group]: b.name for b in scene.bodies}
+        self.names = names
         body = np.full(dx.num_cells(self.msh), -1)
         body[dom.cell_tags.indices] = dom.cell_tags.values
         self.body = [names.get(int(t), "?") for t in body[self.cells]]
@@ -236,6 +237,39 @@ class StepGuard:
         hi = [comm.allreduce(float(v), op=MPI.MAX) for v in x.max(axis=0, initial=-np.inf)]
         self.size = float(np.hypot(hi[0] - lo[0], hi[1] - lo[1]))
         self.u = bulk.u
+        self.free = free_directions(scene, dom, bulk)
+
+    def unsupported(self) -> str | None:
+        """A body that only contact holds along x or y (no Dirichlet value on that
+        component) but that no pair touches at the converged state: its stiffness is
+        singular there and Newton's answer is arbitrary. (Seen: an exactly touching start
+        with a round-off slip threw the upper body ~9 units sideways, and every step then
+        "converged" with zero contact force.) Bodies count as held through the pairs with
+        an active node, from the bodies Dirichlet values hold."""
+        if not any(self.free.values()):
+            return None
+        links = []
+        for h in self.solver.hooks:
+            st = getattr(h, "state", None)
+            if st is not None and np.any(st.p > 0):
+                links.append((h.slave.body_tag, h.master.body_tag))
+        for c, comp in enumerate("xy"):
+            held = {tag for tag, free in self.free.items() if c not in free}
+            grew = True
+            while grew:
+                grew = False
+                for a, b in links:
+                    if (a in held) != (b in held):
+                        held |= {a, b}
+                        grew = True
+            lost = [self.names.get(tag, str(tag)) for tag, free in self.free.items()
+                    if c in free and tag not in held]
+            if lost:
+                return (f"body {lost[0]!r} is held along {comp} by contact alone (no "
+                        f"Dirichlet value on u_{comp}) and touches nothing at the converged "
+                        "state: its stiffness is singular along "
+                        f"{comp}, so this answer is arbitrary (was it pushed out of contact?)")
+        return None
 
     def __call__(self) -> str | None:
         reason = self.solver.snes.getConvergedReason()
@@ -246,7 +280,7 @@ class StepGuard:
             why = getattr(h, "passed_through", lambda: None)()
             if why:
                 return why
-        return self.flown_off() or self.inverted()
+        return self.flown_off() or self.unsupported() or self.inverted()
 
     def flown_off(self) -> str | None:
         """A displacement beyond FLOWN_OFF times the mesh's size (collective): Newton's
@@ -282,6 +316,24 @@ class StepGuard:
                           for j, b, m in found)
         return (f"the solution inverts {count} cell(s) (J = det F <= 0 at a quadrature point "
                 f"or a corner, not a physical deformation): {where}")
+
+
+def free_directions(scene: Scene, dom, bulk) -> dict[int, set[int]]:
+    """Cell tag of each body → the components (0: x, 1: y) on which no node of it has a
+    Dirichlet value (collective): contact alone holds it there."""
+    V = bulk.V
+    held = np.zeros(2 * len(dx.dof_coordinates(V)), dtype=bool)
+    held[dx.bc_dofs(bulk.bcs)] = True
+    blocks = dx.cell_dofs(V)
+    comm = dom.mesh.comm
+    out = {}
+    for b in scene.bodies:
+        tag = dom.cell_groups[b.group]
+        nodes = np.unique(blocks[dom.cells(b.group)])
+        have = [bool(np.any(held[2 * nodes + c])) for c in (0, 1)]
+        have = comm.allreduce(np.array(have, dtype=np.int8), op=MPI.MAX)
+        out[tag] = {c for c in (0, 1) if not have[c]}
+    return out
 
 
 def penetration_warning(pair, step: int) -> str | None:

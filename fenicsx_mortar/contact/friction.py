@@ -82,6 +82,37 @@ def slip_direction(curve, seg, xi, P, a):
     return ad.unit(a)
 
 
+def load_areas(st, surface) -> tuple[np.ndarray, object]:
+    """W_j = ∫ψ_j dΓ over the part of node j's support that sees the master (ψ_j the
+    weight of its pressure: its normal force is p_j W_j) and a callable for the rows ∇W_j.
+    W = A but for the dual basis where a segment is only partly supported: there the
+    friction force weighted by A_j made T ≠ μN at the master's end with every node slipping
+    (B3: 0.297–0.303). Where W_j ≤ 0 (a weak node no neighbour took) A_j stands in: a
+    friction force against the slip would push."""
+    area = st.area
+    if area.psi is None:     # standard basis (or no contribution on this rank): W = A
+        W, contrib = surface.owned_sum(nodal_sum(area, surface.n)), area
+    else:
+        # the dual basis' ψ are fixed combinations of the hats on a segment (node-a and
+        # node-b rows in halves), their gradients the same combinations
+        K = area.size // 2
+        g = area.grad.reshape(2, K, -1)
+        contrib = NodalContributions(area.node, area.slave_nodes, area.master_nodes,
+                                     area.psi, np.concatenate([2 * g[0] - g[1], 2 * g[1] - g[0]]),
+                                     None, area.tail_nodes)
+        W = surface.owned_sum(nodal_sum(contrib, surface.n))
+    ok = (W > 0) | (st.A <= 0)
+    if not ok.all():
+        W = np.where(ok, W, st.A)
+
+    def rows() -> sp.csr_matrix:
+        G = assembly.gradient_matrix(contrib, st.n_slave, st.n_coords, st.layouts)
+        if contrib is area:
+            return G
+        return sp.csr_matrix(sp.diags(ok * 1.0) @ G + sp.diags(~ok * 1.0) @ st.G_area)
+    return W, rows
+
+
 class TangentialState(NamedTuple):
     """The friction part of a :class:`~.state.ContactState`."""
 
@@ -93,6 +124,11 @@ class TangentialState(NamedTuple):
     dt_dp: np.ndarray          # ∂t/∂p
     proj: tuple                # (nodes, segments, ξ̄, |a|) of the slave nodes' projections
     dt_dtrial: np.ndarray      # ∂t/∂(trial traction): ∂t/∂λ_t with multipliers
+    #: W_j, the load area of node j's pressure (∫ψ_j over the supported part: its normal
+    #: force is p_j W_j), which weighs its tangential force W_j t_j; and a callable giving
+    #: the rows ∇W_j over the kernels' coordinates
+    load: np.ndarray | None = None
+    load_rows: object = None
     #: |t − T(t + ε_T g_T)| per node (T the return map, ε_T the law's fixed one), beyond
     #: round-off: zero iff the law holds (stick: no slip; slip: on the cone, along the
     #: slip). None where the traction is not augmented (penalty: the moving cone)
@@ -221,9 +257,10 @@ class Coulomb(Frictionless):
             kkt = np.where(closing, 0.0, np.maximum(
                 kkt - e0 * (st.gap_resolution + st.gap_noise), 0.0))
         _, a = curve.evaluate(segs, xi, P)
+        W, rows = load_areas(st, surface)
         st.tangential = TangentialState(slip, gT, t, status, dt_dg,
                                         dt_dp, (nodes, segs, xi, np.hypot(*a)), dt_dtrial,
-                                        kkt)
+                                        W, rows, kkt)
 
     def anchor_missing(self, nodes: np.ndarray, seg: np.ndarray, xi: np.ndarray) -> None:
         """Nodes without a reference (first contact) take their current projection."""
@@ -284,7 +321,7 @@ class Coulomb(Frictionless):
         # with multipliers (docs/design.md §5a): C_t = s (λ_t − t), t(λ_t + ε_T g_T, p(λ_n))
         ts, n = st.tangential, st.n_slave
         act = st.active * weight
-        A = st.A
+        A = ts.load
         GT = sp.csr_matrix(st.to_nodes(K=assembly.gradient_matrix(
             ts.slip, n, st.n_coords, st.layouts), rows_in_nodes=True))       # (n, n_test)
         Gp = assembly.pressure_rows(st, st.law.dp_dg * act, st.law.dp_dA * act)
@@ -316,7 +353,7 @@ class Coulomb(Frictionless):
         ts = st.tangential
         return {"tangential_force_on_slave": [float(-tangential_on_slave[0]),
                                               float(-tangential_on_slave[1])],
-                "tangential_force": float(np.sum(ts.t * st.A)),
+                "tangential_force": float(np.sum(ts.t * ts.load)),
                 "stick_nodes": int(np.sum(ts.status == STICK)),
                 "slip_nodes": int(np.sum(ts.status == SLIP))}
 

@@ -1,0 +1,86 @@
+"""Frictional contact that only friction holds along the surface (issue 31): an exactly
+touching start, the step guard against a solution out of contact, and no tangential traction
+left by a press where the continuum has none."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from conftest import ROOT
+from fenicsx_mortar import Dirichlet, Friction, load_scene, solve
+from fenicsx_mortar import _dolfinx as dx
+
+
+def friction_held_hertz(times=(0.1, 0.2)):
+    """B2's half-disk on the block, exactly touching at (0, 0), pressed by u_y on its flat
+    top; nothing but friction holds it along x (the issue's exact-touch start: its first
+    iterate has the touching node at p ≈ −7e-18 with a round-off slip)."""
+    scene = load_scene(ROOT / "demos/scenes/hertz.toml")
+    scene.mesh.params = {"h_contact": 0.004814, "h_far": 0.1, "refine_radius": 0.08,
+                         "grade_to": 0.6}
+    scene.dirichlet = [d for d in scene.dirichlet if d.body != "disk"]
+    scene.dirichlet.append(Dirichlet(name="press", boundary="disk_top", y=-0.0045))
+    scene.tractions = []
+    scene.contacts[0].friction = Friction(law="coulomb", mu=0.3)
+    scene.steps.count, scene.steps.times = None, list(times)
+    scene.output.xdmf = scene.output.plots = False
+    return scene
+
+
+def test_exact_touch_held_by_friction_converges_pressed():
+    res = solve(friction_held_hertz(), log=lambda s: None)
+    assert res.converged, res.message
+    for rec in res.steps:
+        c = rec["contact"]["hertz"]
+        # the contact carries the press (the disk stayed on the block, not thrown aside)
+        assert c["active_nodes"] >= 3
+        fy = c["force_on_slave"][1] + c["tangential_force_on_slave"][1]
+        assert fy == pytest.approx(-rec["reactions"]["press"]["y"], rel=1e-8)
+    u = res.u.x.array.reshape(-1, 2)
+    assert np.abs(u[:, 0]).max() < 1e-3           # no rigid sideways motion
+
+
+def test_touching_node_at_zero_pressure_sticks_with_stiffness():
+    """A node at p = 0 within round-off (p < 0 by 1e-17, trial traction at round-off) gets
+    the stick stiffness instead of a slip without any."""
+    from fenicsx_mortar.contact.friction import SLIP, STICK, Coulomb
+    law = Coulomb(0.3, 1e4, 3)
+    law.resolution = 1e4 * 1e-14
+    trial = np.array([3e-13, -2e-13, 1e-3])
+    p = np.array([-7e-18, 0.0, 0.0])
+    t, status, dt_dtrial, _ = law.traction(trial, p, np.ones(3, bool))
+    assert list(status) == [STICK, STICK, SLIP]
+    assert list(dt_dtrial) == [1.0, 1.0, 0.0]
+    assert t[2] == 0.0                              # a real slip at p = 0 carries nothing
+
+
+def guard_and_pair():
+    from fenicsx_mortar import guards
+    from fenicsx_mortar.bulk import build_bulk
+    from fenicsx_mortar.meshing import build_domain
+    from fenicsx_mortar.problem import ContactProblem
+    from fenicsx_mortar.run import scene_pairs
+    scene = friction_held_hertz()
+    dom = build_domain(scene)
+    bulk = build_bulk(scene, dom)
+    pairs = scene_pairs(scene, dom, bulk.V)
+    problem = ContactProblem(bulk.residual, bulk.u, bulk.bcs, pairs, bulk.jacobian,
+                             settings=scene.solver)
+    return guards.StepGuard(scene, bulk, problem.solver), pairs[0], bulk, dom
+
+
+def test_guard_refuses_a_body_out_of_contact_along_a_free_direction():
+    guard, pair, bulk, dom = guard_and_pair()
+    assert guard.free[dom.cell_groups["disk"]] == {0}        # x: friction alone
+    assert guard.free[dom.cell_groups["block"]] == set()
+    V = bulk.V
+    disk = np.unique(dx.cell_dofs(V)[dom.cells("disk")])
+    u = bulk.u.x.array.reshape(-1, 2)
+    u[disk] = (0.0, -1e-3)                                   # pressed: in contact
+    pair.update(bulk.u)
+    assert pair.state.active.sum() >= 3 and guard.unsupported() is None
+    u[disk] = (9.0, -1e-3)                                   # thrown aside: out of contact
+    pair.update(bulk.u)
+    assert not pair.state.active.any()
+    why = guard.unsupported()
+    assert why is not None and "'disk'" in why and "along x" in why
