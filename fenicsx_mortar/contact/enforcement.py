@@ -227,10 +227,14 @@ class AugmentedLagrangian(Enforcement):
         #: t̂, the tangential traction's Uzawa multiplier (friction only)
         self.traction = np.zeros(n_nodes)
         self._converged_traction = self.traction.copy()
+        self._held = None
 
     def annotate(self, st) -> None:
         super().annotate(st)
         st.traction_multiplier, st.epsilon_t = self.traction, self.epsilon
+        # the friction statuses the last solve converged to, for the next solve's first
+        # iterate only (friction.Coulomb.update)
+        st.held_status, self._held = self._held, None
 
     def _tangential(self, p: np.ndarray, tangential) -> np.ndarray | None:
         """The friction's complementarity per node relative to the pressure scale, as
@@ -256,6 +260,7 @@ class AugmentedLagrangian(Enforcement):
         self.multiplier = p.copy()
         if tangential is not None:
             self.traction = tangential.t.copy()
+            self._held = tangential.status.copy()
         seen = A > 0
         if seen.any():
             cap = self.max_growth * self.epsilon0 * np.maximum(

@@ -231,6 +231,16 @@ class Coulomb(Frictionless):
         if hat is not None:
             t, status, dt_dtrial, dt_dp = self._on_the_cone(trial, st.p, t, status,
                                                             dt_dtrial, dt_dp)
+        if st.held_status is not None:
+            # the Uzawa update t̂ ← t doubles a sticking node's trial at the next solve's
+            # first iterate (its elastic slip is still there): taken for a slip there, a
+            # stick zone near the cone slid away whole (Cattaneo-Mindlin at Q = 0.9 mu P
+            # ended in a sliding state). The status it converged to decides that iterate
+            held = (st.held_status == STICK) & (status == SLIP)
+            t = np.where(held, trial, t)
+            dt_dtrial = np.where(held, 1.0, dt_dtrial)
+            dt_dp = np.where(held, 0.0, dt_dp)
+            status = np.where(held, STICK, status)
         dt_dg = eps * dt_dtrial
         # a node that closes during the step was anchored at the step's start, its gap
         # open: the relative motion of its approach is no slip (on a curved master its

@@ -44,6 +44,8 @@ class ContactState:
     epsilon_t: np.ndarray | None = None
     #: the smallest average gap round-off in the coordinates can resolve (the enforcement's)
     gap_resolution: float = 0.0
+    #: the friction statuses of the last Uzawa solve, at the next solve's first iterate
+    held_status: np.ndarray | None = None
     #: per node, the gap Newton's residual tolerance leaves unresolved (the enforcement's)
     gap_noise: np.ndarray | float = 0.0
 
