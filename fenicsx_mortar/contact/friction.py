@@ -251,7 +251,7 @@ class Coulomb(Frictionless):
         # it far, and a body held along the surface by friction alone is not left free
         closing = self._open & st.active
         if closing.any():
-            kappa = self.closing_stiffness * eps
+            kappa = self.closing_stiffness * self.epsilon_t   # not the ALM's grown ε
             tc, sc, dc, pc = self.traction(kappa * gT, st.p, st.active)
             t = np.where(closing, tc, t)
             status = np.where(closing & (sc == STICK), CLOSING, np.where(closing, sc, status))
