@@ -35,7 +35,7 @@ from .kernel import NodalContributions, nodal_sum
 from .projection import closest_segments
 from .registry import FRICTION_LAWS
 
-#: node status; CLOSING: in contact since the step's start, not slipping: no traction yet
+#: node status; CLOSING: closed during the step, not slipping: penalty stick (update)
 STICK, SLIP, INACTIVE, CLOSING = 1, 2, 0, 3
 
 
@@ -185,8 +185,6 @@ class Coulomb(Frictionless):
     node's reference point (segment, ξ) on the master."""
 
     path_dependent = True
-    #: ε_T of a node in the step it closes, relative to the law's (see update)
-    closing_stiffness = 1e-3
 
     def __init__(self, mu: float, epsilon_t: float, n_slave: int):
         self.mu, self.epsilon_t = float(mu), float(epsilon_t)
@@ -244,18 +242,19 @@ class Coulomb(Frictionless):
         dt_dg = eps * dt_dtrial
         # a node that closes during the step was anchored at the step's start, its gap
         # open: the relative motion of its approach is no slip (on a curved master its
-        # closest point also drifts as the gap shrinks), and held as stick it stayed as a
-        # tangential traction of up to 0.2 mu p0 after a press. It sticks from where it
-        # closed, its place at the step's end (accept); in the step it closes only a
-        # spring closing_stiffness × ε_T holds it (no multiplier): it slips if the step slides
-        # it far, and a body held along the surface by friction alone is not left free
-        closing = self._open & st.active
+        # closest point also drifts as the gap shrinks). Held by exact stick to that anchor
+        # (multipliers, Uzawa) it kept a tangential traction of up to 0.25 mu p0 after a
+        # press where the continuum has none. In its closing step its stick is
+        # penalty-regularized (t = ε_T g_T, the law's ε_T, no multiplier: the approach
+        # becomes elastic slip); from the next step it sticks exactly to where it closed
+        # (accept re-anchors it). A node that slides into contact slips as before. (The
+        # penalty law's stick is regularized anyway.)
+        closing = self._open & st.active & (hat is not None)
         if closing.any():
-            kappa = self.closing_stiffness * self.epsilon_t   # not the ALM's grown ε
-            tc, sc, dc, pc = self.traction(kappa * gT, st.p, st.active)
+            tc, sc, dc, pc = self.traction(self.epsilon_t * gT, st.p, st.active)
             t = np.where(closing, tc, t)
             status = np.where(closing & (sc == STICK), CLOSING, np.where(closing, sc, status))
-            dt_dg = np.where(closing, kappa * dc, dt_dg)
+            dt_dg = np.where(closing, self.epsilon_t * dc, dt_dg)
             dt_dtrial = np.where(closing, 0.0, dt_dtrial)
             dt_dp = np.where(closing, pc, dt_dp)
         kkt = None
@@ -394,7 +393,7 @@ class Coulomb(Frictionless):
         # a node that closed in the step keeps only its elastic slip t/ε_T, as a slipping
         # one: its anchor moves to where it closed (_step_start)
         slipping = status == SLIP
-        off = (status == INACTIVE) | (status == CLOSING)
+        off = status == INACTIVE
         n = nodes[slipping | off]
         ref_seg[n] = segs[slipping | off]
         # |a| of the current segment turns the elastic slip t/ε_T into a parameter offset
