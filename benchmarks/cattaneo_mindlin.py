@@ -185,6 +185,9 @@ def run(level: int, enforcement: str, smoothing: str, log=print) -> dict:
             a = half_width(rec["P"], k["R_star"], k["E_star"])
             p0 = 2.0 * rec["P"] / (math.pi * a)
             entry["residue"] = float(np.abs(q).max() / (k["mu"] * p0))
+        keep = (p > 0) | (q != 0)      # the nodal arrays of the contact zone only (JSON size)
+        for key in ("x", "p", "q", "status"):
+            entry[key] = np.asarray(entry[key])[keep].tolist()
         out["states"][f"{t:g}"] = entry
     return out
 
