@@ -279,6 +279,7 @@ class AugmentedLagrangian(Enforcement):
     def begin_step(self) -> None:
         super().begin_step()
         self._last[:] = np.inf
+        self._held = None
 
     def accept(self) -> None:
         super().accept()

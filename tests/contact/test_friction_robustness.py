@@ -84,3 +84,36 @@ def test_guard_refuses_a_body_out_of_contact_along_a_free_direction():
     assert not pair.state.active.any()
     why = guard.unsupported()
     assert why is not None and "'disk'" in why and "along x" in why
+
+
+@pytest.mark.parametrize("state", ["stick", "slip"])
+@pytest.mark.parametrize("enforcement", ["lagrange", "alm"])
+def test_taylor_remainder_of_nodes_closing_in_the_step(enforcement, state):
+    """Nodes out of contact at the step's start and in contact now: penalty stick in the
+    step they close (no multiplier), or slip; the tangent stays exact."""
+    from fenicsx_mortar.contact.friction import CLOSING, SLIP
+    from test_pair import assert_second_order, system, taylor_remainders, upper_block_state
+    solver, pair = system("mortar", enforcement, mu=0.3)
+    rng = np.random.default_rng(21)
+    x, b = solver.x, solver.x.duplicate()
+
+    def set_u(state):
+        solver.u.x.array[:] = state
+        solver.system.pull(x)
+    lifted = upper_block_state(solver, 0.0, rng)
+    lifted[np.arange(1, len(lifted), 2)] *= -1.0        # the upper block 2e-3 above: open
+    set_u(lifted)
+    solver._residual(None, x, b)                        # the step's start: anchors, open set
+    assert not pair.state.active.any()
+    pair.enforcement.multiplier[:] = rng.uniform(0.5, 1.5, pair.slave.n)
+    if enforcement == "lagrange":
+        pair.enforcement.lam[:, 1] = 0.01 * rng.uniform(-1.0, 1.0, pair.slave.n)
+    set_u(upper_block_state(solver, 5e-6 if state == "stick" else 0.013, rng))
+    want = CLOSING if state == "stick" else SLIP
+
+    def check(st):
+        on = st.active
+        assert on.sum() >= 5 and np.all(st.tangential.status[on] == want)
+
+    hs, rem = taylor_remainders(solver, pair, rng, check)
+    assert_second_order(hs, rem)
