@@ -222,10 +222,23 @@ class Coulomb(Frictionless):
             # λ_t (or the Uzawa t̂) carries the traction; g_T is the slip since the last
             # step's end (from where the anchoring left it: see accept)
             gT = gT - self._g0
-        if self._open is None:      # the first iterate of the step: its start
+        first = self._open is None   # the first iterate of the step: its start
+        if first:
             self._open = ~st.active
         trial = eps * gT if hat is None else hat + eps * gT
         t, status, dt_dtrial, dt_dp = self.traction(trial, st.p, st.active)
+        if first:
+            # nodes that nearly touch stick at the step's first iterate (t = trial, zero
+            # there), as they get the normal stiffness in its Jacobian (enforcement.
+            # Enforcement.tangent): an exactly touching start on a curved master may have no
+            # node within round-off of closed (g̃/A = h²/3R with the standard basis), and
+            # then nothing held a body along x that friction alone holds: the first Newton
+            # step moved it sideways, every node then slipped as it closed, and the body
+            # was thrown out of contact (CM at a/40 with 'alm')
+            held = (st.A > 0) & (st.g <= 0.01 * st.A**2) & ~st.active
+            t = np.where(held, trial, t)
+            dt_dtrial = np.where(held, 1.0, dt_dtrial)
+            status = np.where(held, STICK, status)
         if hat is not None:
             t, status, dt_dtrial, dt_dp = self._on_the_cone(trial, st.p, t, status,
                                                             dt_dtrial, dt_dp)
