@@ -219,6 +219,34 @@ def table(runs: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def summary(runs: list[dict]) -> str:
+    """One row per run: c/a error and L2(q) at the three shear states, Newton iterations
+    and augmentations per step (all steps: press and shear), the press residue."""
+    lines = ["| level | enforcement | smoothing | c_fit/c − 1 at T/μN ≈ 0.3 / 0.6 / 0.9 | "
+             "L2(q) | Newton/step mean (max) | augmentations/step mean (max) | "
+             "press residue | completed |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    for r in runs:
+        es = [r["states"].get(f"{t:g}") for t in SHEAR_TIMES]
+        c = " / ".join(_rel(e["c_fit"], e["c_exact"]) if e else "–" for e in es)
+        l2 = " / ".join(f"{e['l2']:.1%}" if e else "–" for e in es)
+        newton = [s["newton"] for s in r["steps"]] or [0]
+        aug = [s["augmentations"] for s in r["steps"]] or [0]
+        press = r["states"].get("1", {}).get("residue", float("nan"))
+        lines.append(f"| {r['level']} | {r['enforcement']} | {r['smoothing']} | {c} | {l2} | "
+                     f"{np.mean(newton):.1f} ({max(newton, default=0)}) | "
+                     f"{np.mean(aug):.1f} ({max(aug, default=0)}) | {press:.3f} | "
+                     f"{'yes' if r['converged'] else 'no'} |")
+    return "\n".join(lines)
+
+
+def _order(run: dict) -> tuple:
+    def index(seq, x):
+        return seq.index(x) if x in seq else len(seq)
+    return (run["level"], index(ENFORCEMENTS, run["enforcement"]),
+            index(SMOOTHINGS, run["smoothing"]))
+
+
 def _rel(x: float, ref: float) -> str:
     return f"{x / ref - 1:+.1%}" if ref > 0 else "-"
 
@@ -278,11 +306,12 @@ def main(argv=None) -> int:
                     print(f"L{level} {enf} {sm}: {r['message']} ({r['wall']:.0f} s)", flush=True)
                     runs = [x for x in runs if (x["level"], x["enforcement"], x["smoothing"])
                             != (level, enf, sm)] + [r]
-                    runs.sort(key=lambda x: (x["level"], ENFORCEMENTS.index(x["enforcement"])
-                                             if x["enforcement"] in ENFORCEMENTS else 9,
-                                             x["smoothing"]))
+                    runs.sort(key=_order)
                     args.data.write_text(json.dumps(runs))
+    runs.sort(key=_order)
     print(table(runs))
+    print()
+    print(summary(runs))
     plot(runs, args.png)
     return 0
 
