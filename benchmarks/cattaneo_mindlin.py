@@ -282,7 +282,7 @@ def plot(runs: list[dict], path: Path) -> None:
         ax.set_ylabel("q / (μ p₀)")
         ax.set_title(f"level {level}: h = a/{10 * 2 ** level}")
         ax.grid(alpha=0.3)
-    axes[0][0].legend(fontsize=7)
+    axes[0][0].legend(fontsize=6, loc="lower center", ncol=3)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
