@@ -245,13 +245,15 @@ class StepGuard:
         singular there and Newton's answer is arbitrary. (Seen: an exactly touching start
         with a round-off slip threw the upper body ~9 units sideways, and every step then
         "converged" with zero contact force.) Bodies count as held through the pairs with
-        an active node, from the bodies Dirichlet values hold."""
+        an active node (gap closed), from the bodies Dirichlet values hold."""
         if not any(self.free.values()):
             return None
         links = []
         for h in self.solver.hooks:
+            # in contact: a closed gap (to round-off), whether or not it carries pressure
+            # (an exactly touching start under a load of 1e-9 converges at p = 0)
             st = getattr(h, "state", None)
-            if st is not None and np.any(st.p > 0):
+            if st is not None and np.any(st.active):
                 links.append((h.slave.body_tag, h.master.body_tag))
         for c, comp in enumerate("xy"):
             held = {tag for tag, free in self.free.items() if c not in free}
