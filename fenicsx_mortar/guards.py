@@ -332,8 +332,7 @@ def free_directions(scene: Scene, dom, bulk) -> dict[int, set[int]]:
     for b in scene.bodies:
         tag = dom.cell_groups[b.group]
         nodes = np.unique(blocks[dom.cells(b.group)])
-        have = [bool(np.any(held[2 * nodes + c])) for c in (0, 1)]
-        have = comm.allreduce(np.array(have, dtype=np.int8), op=MPI.MAX)
+        have = [comm.allreduce(int(np.any(held[2 * nodes + c])), op=MPI.MAX) for c in (0, 1)]
         out[tag] = {c for c in (0, 1) if not have[c]}
     return out
 
