@@ -221,6 +221,7 @@ class AugmentedLagrangian(Enforcement):
     multipliers of :class:`LagrangeMultipliers`, and t̂ is the Uzawa multiplier, so stick
     converges to zero slip instead of a penalty-regularized elastic slip t/ε_T."""
     growth, max_growth = 10.0, 100.0
+    tangential_growth = 30.0
 
     def __init__(self, epsilon: float, n_nodes: int, tolerance: float,
                  gap_resolution: float = 0.0, start: float | None = None):
@@ -235,7 +236,12 @@ class AugmentedLagrangian(Enforcement):
 
     def annotate(self, st) -> None:
         super().annotate(st)
-        st.traction_multiplier, st.epsilon_t = self.traction, self.epsilon
+        # ε_T grows with ε_j, up to tangential_growth ε₀: at 100 ε₀ the semi-smooth Newton of
+        # a solve flipped the slip direction of nodes at the edge of B5's stick zone (the
+        # press cycled to the step floor); at 3 ε₀ the tangential updates stalled
+        # (Cattaneo-Mindlin: KKT not reached in 30 augmentations)
+        st.traction_multiplier = self.traction
+        st.epsilon_t = np.minimum(self.epsilon, self.tangential_growth * self.epsilon0)
         # the friction statuses the last solve converged to, for the next solve's first
         # iterate only (friction.Coulomb.update)
         st.held_status, self._held = self._held, None
