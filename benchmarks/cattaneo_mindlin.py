@@ -2,8 +2,8 @@
 P, then sheared by Q < μP; the stick zone, the tangential traction and the force ratio per
 enforcement, master smoothing and mesh level against Johnson's analytic solution.
 
-    .venv/bin/python benchmarks/cattaneo_mindlin.py                       # 3 levels x 2 x 3
-    .venv/bin/python benchmarks/cattaneo_mindlin.py --levels 0 --enforcements alm
+    .venv/bin/python benchmarks/cattaneo_mindlin.py                       # 3 levels x 4 x 3
+    .venv/bin/python benchmarks/cattaneo_mindlin.py --levels 0 --enforcements alm-stick
     .venv/bin/python benchmarks/cattaneo_mindlin.py --redraw              # table + plot only
 
 The scene ``demos/scenes/cattaneo_mindlin.toml``: half-disks R = 1 (E = 1000, ν = 0.3,
@@ -46,7 +46,7 @@ SCENE = ROOT / "demos" / "scenes" / "cattaneo_mindlin.toml"
 DATA = ROOT / "docs" / "cattaneo_mindlin.json"
 PNG = ROOT / "docs" / "cattaneo_mindlin.png"
 LEVELS = (0, 1, 2)
-ENFORCEMENTS = ("lagrange", "alm", "alm:dual")
+ENFORCEMENTS = ("lagrange", "alm", "alm-stick", "alm-stick:dual")
 SMOOTHINGS = ("none", "hermite", "bspline")
 SHEAR_TIMES = (2.0, 3.0, 4.0)
 
@@ -115,7 +115,7 @@ def metrics(x, p, q, status, P: float, Q: float, mu: float, R_star: float,
 
 # ------------------------------------------------------------------ runs
 def scene_for(level: int, enforcement: str, smoothing: str):
-    """The scene at ``level``; ``enforcement`` is a type, or "type:basis" (alm:dual)."""
+    """The scene at ``level``; ``enforcement`` is a type, or "type:basis" (alm-stick:dual)."""
     from fenicsx_mortar import load_scene
     scene = load_scene(SCENE)
     scene.mesh.params = dict(scene.mesh.params, h_contact=scene.mesh.params["h_contact"]
@@ -269,7 +269,7 @@ def plot(runs: list[dict], path: Path) -> None:
                 x, p = np.array(e["x"]), np.array(e["p"])
                 x = x - np.sum(x * p) / np.sum(p)
                 o = np.argsort(x)
-                mark = {"lagrange": "o", "alm": "x"}.get(r["enforcement"], "+")
+                mark = {"lagrange": "o", "alm": "x", "alm-stick": "+"}.get(r["enforcement"], "1")
                 ratio = e["T"] / (0.3 * e["P"])
                 ax.plot(x[o] / e["a"], np.array(e["q"])[o] / (0.3 * e["p0"]), mark, ms=3,
                         color=colour, label=f"{r['enforcement']} T/μN={ratio:.2f}")

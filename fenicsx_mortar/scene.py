@@ -467,14 +467,15 @@ class Scene:
             if c.friction.law == "none" and c.friction.mu != 0:
                 raise SceneError(f"{key}.friction: mu given but law = 'none' "
                                  "(use law = 'coulomb')")
-            if e.type == "alm" and c.friction.law != "none":
-                # docs/friction.md, "Partial slip": the Uzawa loop reaches the multipliers'
-                # answer, at 10-25 augmentations and 20-40 Newton iterations a step
-                warnings.warn(f"{key}: the augmented Lagrangian (Uzawa) with friction needs "
-                              "~10-25 augmentations a step (Cattaneo-Mindlin: 20-40 Newton "
-                              "iterations) for the answer enforcement 'lagrange' gives in "
-                              "~5-11; prefer 'lagrange' (with 'alm' set basis = 'dual')",
-                              stacklevel=2)
+            if e.type in ("alm", "alm-stick") and c.friction.law != "none":
+                # docs/friction.md, "Partial slip" (Cattaneo-Mindlin)
+                what = ("keeps the stick penalty-regularized (elastic slip): partial-slip "
+                        "tractions come out wrong (the stick zone up to +30 % wide); "
+                        "'alm-stick' augments the traction too" if e.type == "alm" else
+                        "reaches the answer of 'lagrange' at ~10-25 augmentations a step "
+                        "(20-40 Newton iterations, against ~5-11)")
+                warnings.warn(f"{key}: enforcement {e.type!r} with friction {what}; prefer "
+                              "'lagrange'", stacklevel=2)
             if c.search_radius is not None and not c.search_radius > 0:
                 raise SceneError(f"{key}.search_radius = {c.search_radius}: must be positive")
             if c.n_gauss is not None and c.n_gauss < 2:

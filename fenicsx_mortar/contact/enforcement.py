@@ -216,12 +216,13 @@ class AugmentedLagrangian(Enforcement):
     than the bodies makes the first Newton solve fragile (Hertz at h = a/4 fails from
     10 E/h): ε₀ is at most the pair's E/h (``start``).
 
-    With friction the tangential traction is augmented too (docs/design.md §5): the law
-    sees the trial t̂_j + ε_j g_T,j with g_T,j the slip of the load step, as with the
-    multipliers of :class:`LagrangeMultipliers`, and t̂ is the Uzawa multiplier, so stick
-    converges to zero slip instead of a penalty-regularized elastic slip t/ε_T."""
+    With friction the stick stays penalty-regularized (elastic slip t/ε_T, the moving cone
+    of :mod:`.friction`): the paper's method. :class:`AugmentedLagrangianStick` augments
+    the tangential traction too."""
     growth, max_growth = 10.0, 100.0
     tangential_growth = 30.0
+    #: whether the tangential traction has its own Uzawa multiplier t̂ (exact stick)
+    augments_traction = False
 
     def __init__(self, epsilon: float, n_nodes: int, tolerance: float,
                  gap_resolution: float = 0.0, start: float | None = None):
@@ -236,6 +237,8 @@ class AugmentedLagrangian(Enforcement):
 
     def annotate(self, st) -> None:
         super().annotate(st)
+        if not self.augments_traction:
+            return
         # ε_T grows with ε_j, up to tangential_growth ε₀: at 100 ε₀ the semi-smooth Newton of
         # a solve flipped the slip direction of nodes at the edge of B5's stick zone (the
         # press cycled to the step floor); at 3 ε₀ the tangential updates stalled
@@ -249,7 +252,7 @@ class AugmentedLagrangian(Enforcement):
     def _tangential(self, p: np.ndarray, tangential) -> np.ndarray | None:
         """The friction's complementarity per node relative to the pressure scale, as
         :meth:`complementarity` (None without friction)."""
-        if tangential is None:
+        if tangential is None or tangential.kkt is None:
             return None
         scale = p.max(initial=0.0)
         return tangential.kkt / scale if scale > 0 else tangential.kkt
@@ -269,7 +272,7 @@ class AugmentedLagrangian(Enforcement):
         if c.max(initial=0.0) <= self.tolerance:
             return False
         self.multiplier = p.copy()
-        if tangential is not None:
+        if tangential is not None and self.augments_traction:
             self.traction = tangential.t.copy()
             self._held = tangential.status.copy()
         seen = A > 0
@@ -307,6 +310,18 @@ class AugmentedLagrangian(Enforcement):
             self.traction = np.zeros_like(m)
         super().load_state_dict({"multiplier": m})
         self._converged_traction = self.traction.copy()
+
+
+@ENFORCEMENTS.register("alm-stick")
+class AugmentedLagrangianStick(AugmentedLagrangian):
+    """The Uzawa augmented Lagrangian with the tangential traction augmented too
+    (docs/design.md §5): the friction law sees the trial t̂_j + ε_T,j g_T,j with g_T,j the
+    slip of the load step, as with the multipliers of :class:`LagrangeMultipliers`, and
+    t̂ ← t with p̂ ← p after each solve, so stick converges to zero slip instead of the
+    elastic slip t/ε_T; the KKT residual includes the friction's. It reaches the
+    multipliers' answer (with the dual basis, the same discrete one), at 10-25
+    augmentations a step (docs/friction.md, "Partial slip")."""
+    augments_traction = True
 
 
 @ENFORCEMENTS.register("lagrange")

@@ -82,11 +82,11 @@ def test_the_press_leaves_no_tangential_traction():
 
 
 def test_augmented_lagrangian_reaches_the_multipliers_answer(multipliers):
-    """The Uzawa ALM with the tangential traction augmented (and the dual basis: the same
-    discrete equations) converges to the multipliers' state, stick zone included (with the
-    penalty-regularized stick of before, c/a was off by +13 to +29 %); at Q = 0.9 μP too,
-    where the first solve after an update used to slide the whole zone away."""
-    _, states = run("alm:dual")
+    """The Uzawa ALM with the tangential traction augmented ('alm-stick'; with the dual
+    basis: the same discrete equations) converges to the multipliers' state, stick zone
+    included (the penalty-regularized stick of 'alm' has c/a off by +13 to +29 %); at
+    Q = 0.9 μP too, where the first solve after an update slid the whole zone away."""
+    _, states = run("alm-stick:dual")
     _, ref = multipliers
     for t in cm.SHEAR_TIMES:
         (rec, d), (_, d_ref) = states[t], ref[t]

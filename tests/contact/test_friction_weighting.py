@@ -77,7 +77,7 @@ def middle_master_system(enforcement: str):
 
 
 @pytest.mark.parametrize("state", ["stick", "slip"])
-@pytest.mark.parametrize("enforcement", ["lagrange", "alm"])
+@pytest.mark.parametrize("enforcement", ["lagrange", "alm", "alm-stick"])
 def test_taylor_with_a_partly_supported_node(enforcement, state):
     """The tangent of W_j t_j ∇g_T,j through ∇W_j: the upper block's right end 0.03 and
     0.043 past the master's end (a segment is 0.2 long), the dual basis."""
