@@ -240,6 +240,27 @@ def summary(runs: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def _compact(runs: list[dict]) -> list[dict]:
+    """The JSON kept in docs: 7 digits, nodal arrays only where the plot uses them."""
+    def rnd(x):
+        if isinstance(x, float):
+            return float(f"{x:.7g}")
+        if isinstance(x, list):
+            return [rnd(v) for v in x]
+        if isinstance(x, dict):
+            return {k: rnd(v) for k, v in x.items()}
+        return x
+    out = []
+    for r in runs:
+        r = rnd(r)
+        if r["smoothing"] != "none":
+            for e in r["states"].values():
+                for key in ("x", "p", "q", "status"):
+                    e.pop(key, None)
+        out.append(r)
+    return out
+
+
 def _order(run: dict) -> tuple:
     def index(seq, x):
         return seq.index(x) if x in seq else len(seq)
@@ -307,7 +328,7 @@ def main(argv=None) -> int:
                     runs = [x for x in runs if (x["level"], x["enforcement"], x["smoothing"])
                             != (level, enf, sm)] + [r]
                     runs.sort(key=_order)
-                    args.data.write_text(json.dumps(runs))
+                    args.data.write_text(json.dumps(_compact(runs), separators=(",", ":")))
     runs.sort(key=_order)
     print(table(runs))
     print()
