@@ -11,13 +11,19 @@ master, carried between load steps:
     stick (Φ ≤ 0): t_j = t*_j ;   slip (Φ > 0): t_j = μ p_j sign(t*_j)
 
 (p_j ≥ 0 the normal contact pressure). The tangential nodal forces are the variation of
-Σ_j A_j t_j g_T,j at fixed t (A_j the nodal area), R_T = Σ_j A_j t_j ∇g_T,j, with the
-consistent, unsymmetric tangent through ∇g_T, ∇²g_T, ∇A and (slip) ∇p.
+Σ_j W_j t_j g_T,j at fixed t (W_j the load area of node j's pressure, :func:`load_areas`),
+R_T = Σ_j W_j t_j ∇g_T,j, with the consistent, unsymmetric tangent through ∇g_T, ∇²g_T,
+∇W and (slip) ∇p, ∇p from the enforcement's own ∂p/∂g̃, ∂p/∂A.
 
-Moving cone: after a converged step, a sticking node keeps its reference point; a slipping
-node's reference moves to the point that leaves exactly the elastic part t_j/ε_T of the
-slip, x_ref = x_m(ξ̄_j) − (t_j/ε_T) t̂; a node out of contact re-anchors at its current
-projection, so a node that lifts off and comes back starts from rest.
+Where the enforcement carries a tangential multiplier (λ_t with Lagrange multipliers, the
+Uzawa t̂ with ``alm-stick``) the trial is that multiplier + ε_T g_T with g_T the slip of
+the step (every node re-anchored at the step's end), and stick is exact; a node that
+closes during the step has a penalty-regularized stick in that step (:meth:`Coulomb.update`).
+
+Moving cone (penalty, ``alm``): after a converged step, a sticking node keeps its reference
+point; a slipping node's reference moves to the point that leaves exactly the elastic part
+t_j/ε_T of the slip, x_ref = x_m(ξ̄_j) − (t_j/ε_T) t̂; a node out of contact re-anchors at
+its current projection, so a node that lifts off and comes back starts from rest.
 
 A new law with the same kinematics is a subclass of :class:`Coulomb` with its own
 :meth:`~Coulomb.traction` (the return map), registered under its name.
