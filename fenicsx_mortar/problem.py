@@ -106,6 +106,8 @@ class ContactProblem:
         for p in self.pairs:
             p.timings = self.timings
             p._problem = weakref.ref(self)
+            # the ALM's KKT test asks no more of the gaps than this tolerance resolves
+            p.enforcement.force_resolution = settings.atol
         self._closed = False
         self._shared_bc_dofs: bool | None = None
         matrix = None
@@ -122,7 +124,7 @@ class ContactProblem:
             matrix.destroy()   # read once for the multipliers' pattern (system.py)
         self.newton.accept = Acceptance(u, self.pairs, settings.quadrature_degree,
                                         physical=acceptance, cell_tags=cell_tags,
-                                        body_names=body_names)
+                                        body_names=body_names, bcs=self.bcs)
 
     @property
     def solver(self):

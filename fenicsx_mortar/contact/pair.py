@@ -212,8 +212,7 @@ class ContactPair:
             curve = self._curve.with_nodes(xm)
             gap, area, g, A = self.discretization.weighted_gaps(xs, xm, curve, pairs)
         st = ContactState(xs, xm, curve, pairs, gap, area, g, A, self.layouts)
-        if self.unknowns:
-            st.multipliers, st.multiplier_scale = self.enforcement.lam, self.enforcement.scale
+        self.enforcement.annotate(st)
         st.law = self.enforcement.pressure(g, A)
         self.friction.update(st, s)
         return st
@@ -256,7 +255,7 @@ class ContactPair:
         """
         st, w = self.state, self.weight
         K = _sum([self.enforcement.tangent(st, w, self._first_jacobian),
-                  self.friction.tangent(st, w, self.enforcement.epsilon)])
+                  self.friction.tangent(st, w)])
         self._first_jacobian = False
         with self._timed("contact_insertion"):
             assembly.add_to_matrix(A, K, self.index, self.skip, self.n_global, self.layouts)
@@ -292,7 +291,7 @@ class ContactPair:
     def kkt_residual(self) -> float:
         """The Alart–Curnier KKT residual of the state, relative to the pressure scale."""
         st = self.state
-        return self.enforcement.kkt_residual(st.g, st.A, st.p)
+        return self.enforcement.kkt_residual(st.g, st.A, st.p, st.tangential)
 
     def decision(self) -> np.ndarray | None:
         """What the semi-smooth Newton decides per slave node: 0 inactive, 1 active (plus,
@@ -307,7 +306,7 @@ class ContactPair:
         """Between converged Newton solves: update the enforcement (Uzawa, ε continuation);
         True when another solve is needed."""
         st = self.state
-        again = self.enforcement.augment(st.g, st.A, st.p)
+        again = self.enforcement.augment(st.g, st.A, st.p, st.tangential)
         if again:
             self.augmentations += 1
         return again
