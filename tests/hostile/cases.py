@@ -1247,11 +1247,17 @@ def run_in_background(d: Path, donors) -> None:
     deadline = time.time() + 120
     while not (d / "out/scene.json").exists() and proc.poll() is None and time.time() < deadline:
         time.sleep(0.05)
+    # held still (with its lock) until the check: on an idle machine it could otherwise end
+    # before the second run starts
+    if proc.poll() is None:
+        os.killpg(proc.pid, signal.SIGSTOP)
 
 
 def first_run_whole(d: Path, out: str, err: str) -> str:
     """check: the run that held --out first ends converged with all its steps."""
     proc = _BACKGROUND[d]
+    if proc.poll() is None:
+        os.killpg(proc.pid, signal.SIGCONT)
     try:
         proc.wait(timeout=240)
     except subprocess.TimeoutExpired:
