@@ -29,7 +29,7 @@ from mpi4py import MPI
 from .. import _dolfinx as dx
 from .output import write_file
 from ..scene.parallel import agree, on_rank0
-from ..scene.model import SceneError, Steps, from_dict, json_loads
+from ..scene import SceneError, Steps, from_dict, json_loads
 
 FILE = "checkpoint.npz"
 #: the arrays every checkpoint has (the pairs add "pair<i>_<key>")

@@ -27,7 +27,7 @@ from typing import Iterator
 
 import numpy as np
 
-from ..scene.model import SceneError, json_loads
+from ..scene import SceneError, json_loads
 
 
 def prepare_out(out: Path) -> None:
