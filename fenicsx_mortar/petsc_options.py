@@ -171,6 +171,35 @@ def check_solver_choice(settings: SolverSettings, user: Mapping[str, str],
                          "enforcement 'alm' or 'penalty'")
 
 
+#: the external packages a linear solver may name, and the option that names them
+_PACKAGES = {"hypre": "pc_type", "mumps": "pc_factor_mat_solver_type",
+             "superlu_dist": "pc_factor_mat_solver_type"}
+
+
+def check_packages(settings: SolverSettings, user: Mapping[str, str],
+                   key: str = "petsc_options", settings_key: str = "settings") -> None:
+    """The linear solver's external package is in this PETSc build (PyPI's DOLFINx wheel
+    has no hypre; without this check PETSc fails inside SNESSetFromOptions).
+
+    Args:
+        settings: The Newton settings (their ``linear_solver``).
+        user: The user's PETSc options, normalized.
+        key: How messages name ``user``.
+        settings_key: How messages name ``settings``.
+
+    Raises:
+        ValueError: naming the package and the setting that asks for it.
+    """
+    options = {**defaults(settings), **user}
+    for package, option in _PACKAGES.items():
+        if options.get(option) == package and not PETSc.Sys.hasExternalPackage(package):
+            source = (f"{key}: -{option} {package}" if user.get(option) == package else
+                      f"{settings_key}.linear_solver = {settings.linear_solver!r}")
+            raise ValueError(f"{source}: this PETSc is built without {package} (PyPI's "
+                             "DOLFINx wheel has no hypre); choose another linear solver, "
+                             "e.g. 'mumps'")
+
+
 def _libpetsc():
     """The loaded PETSc library (petsc4py's), for the calls petsc4py lacks."""
     with open("/proc/self/maps") as f:

@@ -93,6 +93,7 @@ class ContactProblem:
         user = {**po.normalize(settings.petsc), **po.normalize(petsc_options)}
         multipliers = any(p.unknowns for p in pairs)
         po.check_solver_choice(settings, user, multipliers)
+        po.check_packages(settings, user)
         unread = po.unread(settings, user)
         if unread:
             warnings.warn(po.unread_message(unread), stacklevel=2)

@@ -120,6 +120,24 @@ def test_solver_options_that_cannot_work_are_refused(slab, options, match):
         new_problem(slab, petsc_options=options)
 
 
+def test_a_linear_solver_this_petsc_lacks_is_refused_by_name(slab):
+    """gmres-hypre needs hypre: PyPI's DOLFINx wheel has none (PETSc failed inside
+    SNESSetFromOptions); where it exists the problem is built."""
+    import copy
+
+    from petsc4py import PETSc
+    scene, dom = slab
+    scene = copy.deepcopy(scene)
+    scene.contacts[0].enforcement.type = "penalty"
+    settings = fm.SolverSettings(linear_solver="gmres-hypre")
+    if PETSc.Sys.hasExternalPackage("hypre"):
+        new_problem((scene, dom), settings=settings)[0].close()
+    else:
+        with pytest.raises(ValueError, match="settings.linear_solver = 'gmres-hypre': this "
+                           "PETSc is built without hypre"):
+            new_problem((scene, dom), settings=settings)
+
+
 @pytest.mark.parametrize("field, value", [("atol", math.inf), ("rtol", 0.0),
                                           ("max_iterations", 0), ("line_search", "l3"),
                                           ("linear_solver", "umfpack")])

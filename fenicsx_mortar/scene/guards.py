@@ -25,9 +25,11 @@ def check_petsc_options(settings: SolverSettings) -> None:
     """Every ``solver.petsc`` option is taken by PETSc and read when the solver is set up
     or, for ``-mat_mumps_*``, at its first factorization (an option read never, as
     ``-snes_foo``, or not for this solver, as ``-mat_mumps_*`` with SuperLU_dist, would be
-    silently ignored). Raises SceneError naming the option."""
+    silently ignored), and the linear solver's package is in this PETSc build. Raises
+    SceneError naming the option."""
     user = po.normalize(settings.petsc)
     try:
+        po.check_packages(settings, user, key="solver.petsc", settings_key="solver")
         unread = po.unread(settings, user, key="solver.petsc")
     except ValueError as e:
         raise SceneError(str(e)) from None
