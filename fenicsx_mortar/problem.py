@@ -20,6 +20,7 @@ load stepping with step cutting; the scene runner is a client of both.
 """
 from __future__ import annotations
 
+import dataclasses
 import warnings
 import weakref
 from typing import Callable, Mapping, Sequence
@@ -31,8 +32,9 @@ from mpi4py import MPI
 from . import _dolfinx as dx
 from . import petsc_options as po
 from .acceptance import Acceptance
+from .condensation import condensable
 from .newton import NewtonSolver, StepResult
-from .settings import SolverSettings, check_number
+from .settings import SolverSettings, check_number, resolve_linear_solver
 from .timings import Timings
 
 
@@ -88,7 +90,10 @@ class ContactProblem:
                              "letters, digits and '_' (PETSc's prefix, without '-')")
         user = {**po.normalize(settings.petsc), **po.normalize(petsc_options)}
         multipliers = any(p.unknowns for p in pairs)
-        po.check_solver_choice(settings, user, multipliers)
+        dual = condensable(pairs)
+        settings = dataclasses.replace(settings, linear_solver=resolve_linear_solver(
+            settings.linear_solver, dx.dof_count(u.function_space), multipliers, dual))
+        po.check_solver_choice(settings, user, multipliers, condensable=dual)
         unread = po.unread(settings, user)
         if unread:
             warnings.warn(po.unread_message(unread), stacklevel=2)

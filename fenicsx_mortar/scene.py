@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal, Union
 
-from .settings import SolverSettings
+from .settings import CONDENSED_SOLVERS, SolverSettings
 
 #: upper bounds of the numbers that drive memory or time (docs/scenes.md): cells of a
 #: generated mesh (estimated before meshing) or of a mesh file, load steps, cuts in a row,
@@ -432,12 +432,21 @@ class Scene:
             setting = ("solver.linear_solver", self.solver.linear_solver) if lu == "mumps" \
                 else ("solver.petsc -pc_factor_mat_solver_type", lu)
             multipliers = getattr(ENFORCEMENTS[e.type], "unknowns", 0)
-            if multipliers and setting[1] != "mumps":
+            dual = c.basis == "dual" or (c.basis is None and "dual" in METHODS[c.method].bases)
+            condensed = self.solver.linear_solver in CONDENSED_SOLVERS
+            if multipliers and condensed and not dual:
+                raise SceneError(
+                    f"solver.linear_solver = {self.solver.linear_solver!r} condenses the "
+                    f"multipliers, which needs the dual basis; {key} (basis "
+                    f"{c.basis or 'standard'!r}, method {c.method!r}) has a saddle-point "
+                    "system: use 'mumps' (or 'auto'), or the mortar method's dual basis")
+            if multipliers and not condensed and setting[1] not in ("mumps", "auto"):
                 raise SceneError(
                     f"{setting[0]} = {setting[1]!r}: cannot solve the "
                     f"saddle-point system of {key}'s multipliers (enforcement "
                     f"{e.type!r}: zero pivots that need MUMPS's pivoting); use 'mumps', or "
-                    "enforcement 'alm' or 'penalty'")
+                    "a condensed solver with the dual basis, or enforcement 'alm' or "
+                    "'penalty'")
             if e.epsilon is not None and not e.epsilon > 0:
                 raise SceneError(f"{key}.enforcement.epsilon = {e.epsilon}: must be positive")
             if not e.tolerance > 0:

@@ -225,11 +225,18 @@ class ContactPair:
         with self._timed("contact_insertion"):
             assembly.add_to_vector(b, self.dofs, f)
 
-    def add_jacobian(self, A, bc_dofs) -> None:
+    def tangent(self):
+        """The pair's tangent over its local unknowns [stacked node coordinates, then its
+        multipliers] (COO, repeated entries to be summed), rows of this rank's slave nodes;
+        the first call of a load step adds the touching nodes' stiffness."""
         st, w = self.state, self.weight
         K = _sum([self.enforcement.tangent(st, w, self._first_jacobian),
                   self.friction.tangent(st, w, self.enforcement.epsilon)])
         self._first_jacobian = False
+        return K
+
+    def add_jacobian(self, A, bc_dofs) -> None:
+        K = self.tangent()
         with self._timed("contact_insertion"):
             assembly.add_to_matrix(A, K, self.index, self.skip, self.n_global, self.layouts)
 

@@ -1,0 +1,732 @@
+"""Condensed dual-mortar multipliers: the Newton system over [u, λ] solved through a
+displacement-only matrix (docs/condensation.md has the derivation).
+
+The SNES still iterates on [u, λ] with the residual [R_u; C] of
+:class:`~.system.MultiplierSystem` — same function, same norms, same line search — so the
+iterates are those of the saddle-point solve to round-off. Only the linear solve differs:
+the SNES's KSP is a Python KSP (:class:`_CondensedKSP`) that, per Newton iteration,
+
+1. eliminates the multipliers whose own rows are invertible (inactive nodes, the tangential
+   multiplier of sliding or frictionless nodes): their columns in the u-rows are zero;
+2. eliminates the others, ``H`` (active normal multipliers, sticking tangential ones: rows
+   with ∂C/∂λ = 0), through one displacement row of each node, ``P`` (the node's own rows,
+   where the dual basis makes the multipliers' forces nearly diagonal): with
+   M = P B_H and W = M⁻¹ the condensed matrix is
+
+       J_c = (I − B_H W P) K    on the rows outside P,   J_c = G_H on the rows P,
+
+   G_H = ∂C_H/∂u; M is block-tridiagonal along the slave chain and W its inverse by a
+   Neumann series truncated where the terms fall below round-off of the kept ones;
+3. solves J_c Δu = f_c with the inner KSP (MUMPS, or a Krylov method with AMG) and
+   recovers Δλ_H = W (b_P − P K Δu) and the eliminated ones from their rows.
+
+Every rank holds the multiplier data of all slave nodes (the surfaces are 1D and gathered
+anyway); each rank inserts the condensation's entries of the rows it owns.
+"""
+from __future__ import annotations
+
+import weakref
+from typing import Sequence
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from . import _dolfinx as dx
+from .system import MultiplierSystem, near_nullspace
+from .timings import Timings
+
+#: entries of the truncated inverse W below this fraction of their row's diagonal block
+#: are dropped: eps/16, below round-off of the entries they would be added to
+TRUNCATION = np.finfo(float).eps / 16
+#: the Neumann series is used while ‖D⁻¹E‖∞ is below this; above, W is the dense inverse
+NEUMANN_LIMIT = 0.5
+#: band of slave nodes (along the chain) whose couplings are preallocated around a node
+PREDICTED_BAND = 2
+
+
+class CondensationError(RuntimeError):
+    """The multiplier blocks do not have the structure the condensation relies on."""
+
+
+def condensable(pairs: Sequence) -> bool:
+    """Whether every pair with multipliers weighs its gaps with the dual basis (the
+    condensed path's premise: nearly diagonal slave blocks of the multiplier forces).
+
+    Args:
+        pairs: The contact pairs.
+
+    Returns:
+        True if at least one pair has multipliers and all of those use the dual basis.
+    """
+    with_lam = [p for p in pairs if p.unknowns]
+    return bool(with_lam) and all(
+        getattr(p.discretization, "basis", "standard") == "dual" for p in with_lam)
+
+
+# ------------------------------------------------------------------------- the algebra
+
+
+class Elimination:
+    """One Newton iteration's elimination of the multipliers, from the multiplier blocks
+    of the whole system (every rank holds all of them; global numbering: displacement dofs
+    [0, n_u), multipliers [0, n_lam)).
+
+    Args:
+        n_u: Global number of displacement dofs.
+        B: ∂R_u/∂λ, (n_u, n_lam) COO (Dirichlet rows left out).
+        Cu: ∂C/∂u, (n_lam, n_u) COO (Dirichlet columns left out).
+        Cl: ∂C/∂λ, (n_lam, n_lam) COO.
+        node_dofs: (n_lam, 2) the global displacement dofs of each multiplier's slave node.
+        free: (n_lam, 2) whether each of those dofs is free (not Dirichlet).
+
+    Raises:
+        CondensationError: a structure the elimination cannot take (named).
+    """
+
+    def __init__(self, n_u: int, B: sp.coo_matrix, Cu: sp.coo_matrix, Cl: sp.coo_matrix,
+                 node_dofs: np.ndarray, free: np.ndarray):
+        self.n_u = n_u
+        n_lam = Cl.shape[0]
+        Cl = sp.csr_matrix(Cl)
+        Cl.eliminate_zeros()
+        # B over the u-rows it acts on only (n_u is the whole mesh)
+        B = sp.coo_matrix(B)
+        keep = B.data != 0.0
+        rows, inv = np.unique(B.row[keep], return_inverse=True)
+        Bc = sp.csc_matrix((B.data[keep], (inv, B.col[keep])), shape=(len(rows), n_lam))
+        hard = np.diff(Cl.indptr) == 0
+        H, E = np.flatnonzero(hard), np.flatnonzero(~hard)
+        if np.any(np.diff(Bc.indptr)[E] > 0):
+            raise CondensationError(
+                "a multiplier with an invertible row of its own acts on the displacement "
+                "rows: the condensation has no rule for that enforcement")
+        # the hard multipliers of one slave node side by side (the node's block of M)
+        key = node_dofs[H, 0] // 2
+        order = np.argsort(key, kind="stable")
+        H, key = H[order], key[order]
+        first = np.flatnonzero(np.r_[True, key[1:] != key[:-1]]) if len(H) else H
+        size = np.diff(np.r_[first, len(H)])
+        if np.any(size > 2):
+            raise CondensationError("more than two active multipliers on one slave node "
+                                    "(two pairs sharing a slave surface, both sticking)")
+        group = np.repeat(np.arange(len(first)), size)
+        self.H, self.E = H, E
+        Bh = sp.csr_matrix(Bc[:, H])
+        self.p_rows = self._rows(Bh, rows, H, node_dofs, free, first, size)
+        at = np.searchsorted(rows, self.p_rows)
+        if len(at) and not np.array_equal(rows[np.minimum(at, len(rows) - 1)], self.p_rows):
+            raise CondensationError("an active multiplier exerts no force on its slave "
+                                    "node's displacement rows")
+        M = sp.csr_matrix(Bh[at])                              # M = P B_H, rows as H
+        self.W = _inverse(M, group, first, size) if len(H) else sp.csr_matrix((0, 0))
+        used = np.flatnonzero(np.diff(Bh.indptr))              # u-rows B_H acts on
+        self.B_rows = rows[used]
+        self.BHW = sp.csr_matrix(Bh[used] @ self.W)
+        Cu = sp.csr_matrix(Cu)
+        self.G = sp.csr_matrix(Cu[H])                          # rows of H, cols global u
+        self.Cu_E = sp.csr_matrix(Cu[E])
+        self.Cl_EH = sp.csr_matrix(Cl[E][:, H])
+        Cl_EE = sp.csc_matrix(Cl[E][:, E])
+        self._lu = spla.splu(Cl_EE) if len(E) else None
+        self.n_lam = n_lam
+
+    @staticmethod
+    def _rows(Bh: sp.csr_matrix, rows: np.ndarray, H, node_dofs, free, first,
+              size) -> np.ndarray:
+        """The displacement row P of every hard multiplier: both rows of a node with two,
+        else the node's free row on which the multiplier's force is larger."""
+        p = np.empty(len(H), dtype=np.int64)
+        dofs, ok = node_dofs[H], free[H]
+        two = np.repeat(size == 2, size)
+        if two.any():
+            if not ok[two].all():
+                raise CondensationError("a sticking slave node with a Dirichlet condition: "
+                                        "its multipliers have no displacement rows")
+            lead = first[size == 2]
+            p[lead], p[lead + 1] = dofs[lead, 0], dofs[lead, 1]
+        one = np.flatnonzero(~two)
+        if len(one):
+            val = np.zeros((len(one), 2))
+            for c in (0, 1):
+                val[:, c] = _entries(Bh, rows, dofs[one, c], one)
+            val[~ok[one]] = 0.0
+            pick = np.argmax(np.abs(val), axis=1)
+            if np.any(val[np.arange(len(one)), pick] == 0.0):
+                raise CondensationError("an active multiplier exerts no force on its slave "
+                                        "node's free displacement rows")
+            p[one] = dofs[one, pick]
+        return p
+
+    # -- the condensed matrix ---------------------------------------------------------
+    def delta(self, PK: sp.csr_matrix, owned: tuple[int, int]) -> tuple[np.ndarray,
+                                                                          sp.csr_matrix]:
+        """What to add to K's owned rows for J_c: −B_H W P K on the rows B_H acts on
+        outside P, G_H − K_P on the rows P.
+
+        Args:
+            PK: The rows ``p_rows`` of the assembled K, (n_H, n_u).
+            owned: This rank's row range [r0, r1).
+
+        Returns:
+            (global rows, CSR over them with global columns).
+        """
+        r0, r1 = owned
+        in_p = np.isin(self.B_rows, self.p_rows)
+        keep = (~in_p) & (self.B_rows >= r0) & (self.B_rows < r1)
+        D1 = -(sp.csr_matrix(self.BHW[keep]) @ PK)
+        mine = (self.p_rows >= r0) & (self.p_rows < r1)
+        D2 = sp.csr_matrix(self.G[mine] - PK[mine])
+        rows = np.concatenate([self.B_rows[keep], self.p_rows[mine]])
+        return rows, sp.csr_matrix(sp.vstack([D1, D2], format="csr"))
+
+    # -- right-hand side and recovery ---------------------------------------------------
+    def rhs_update(self, b_P: np.ndarray, b_H: np.ndarray, owned: tuple[int, int]):
+        """The condensed right-hand side's changes to b_u on this rank's rows: the rows B_H
+        acts on outside P get −B_H W b_P added, the rows P become b_H.
+
+        Returns:
+            (rows added to, values; rows set, values), global rows.
+        """
+        r0, r1 = owned
+        in_p = np.isin(self.B_rows, self.p_rows)
+        keep = (~in_p) & (self.B_rows >= r0) & (self.B_rows < r1)
+        add = -(self.BHW[keep] @ b_P)
+        mine = (self.p_rows >= r0) & (self.p_rows < r1)
+        return self.B_rows[keep], add, self.p_rows[mine], b_H[mine]
+
+    def recover(self, b_lam: np.ndarray, b_P: np.ndarray, PK_du: np.ndarray,
+                CuE_du: np.ndarray) -> np.ndarray:
+        """Δλ of every multiplier from the displacement step: Δλ_H = W (b_P − P K Δu),
+        then the others from their own rows.
+
+        Args:
+            b_lam: The multiplier rows' right-hand side (n_lam).
+            b_P: The right-hand side at the rows P (in the order of H).
+            PK_du: (P K) Δu.
+            CuE_du: (∂C_E/∂u) Δu.
+
+        Returns:
+            Δλ (n_lam).
+        """
+        out = np.zeros(self.n_lam)
+        lam_H = self.W @ (b_P - PK_du)
+        out[self.H] = lam_H
+        if self._lu is not None:
+            out[self.E] = self._lu.solve(b_lam[self.E] - CuE_du - self.Cl_EH @ lam_H)
+        return out
+
+
+def _entries(A: sp.csr_matrix, rows: np.ndarray, r: np.ndarray, c: np.ndarray
+             ) -> np.ndarray:
+    """A[k, c[k]] at the row k of A whose global row number ``rows[k]`` is r[k], for each k
+    (0 where not stored)."""
+    out = np.zeros(len(r))
+    at = np.searchsorted(rows, r)
+    ok = at < len(rows)
+    ok[ok] = rows[at[ok]] == r[ok]
+    if not ok.any():
+        return out
+    coo = sp.coo_matrix(A)
+    n = np.int64(A.shape[1])
+    keys = coo.row.astype(np.int64) * n + coo.col
+    order = np.argsort(keys)
+    keys, data = keys[order], coo.data[order]
+    q = at[ok].astype(np.int64) * n + c[ok]
+    i = np.minimum(np.searchsorted(keys, q), len(keys) - 1)
+    out[ok] = np.where(keys[i] == q, data[i], 0.0)
+    return out
+
+
+def _inverse(M: sp.csr_matrix, group: np.ndarray, first: np.ndarray,
+             size: np.ndarray) -> sp.csr_matrix:
+    """M⁻¹ for M = D + E with D block-diagonal (one 1×1 or 2×2 block per slave node) and E
+    the couplings of neighbouring nodes: the Neumann series Σ (−D⁻¹E)^k D⁻¹, every term's
+    entries below TRUNCATION of their row's diagonal-block scale dropped (the terms fall
+    geometrically, each reaching one node further along the chain); the dense inverse
+    where ‖D⁻¹E‖∞ is not small."""
+    n = M.shape[0]
+    coo = M.tocoo()
+    same = group[coo.row] == group[coo.col]
+    D = sp.csr_matrix((coo.data[same], (coo.row[same], coo.col[same])), shape=(n, n))
+    E = sp.csr_matrix((coo.data[~same], (coo.row[~same], coo.col[~same])), shape=(n, n))
+    Dinv = _block_inverse(D, first, size)
+    scale = np.asarray(abs(Dinv).max(axis=1).todense()).ravel()
+    F = sp.csr_matrix(Dinv @ E)
+    rho = float(abs(F).sum(axis=1).max()) if F.nnz else 0.0
+    if rho < NEUMANN_LIMIT:
+        W, term = Dinv.copy(), Dinv
+        for _ in range(400):
+            term = _prune(sp.csr_matrix(-(F @ term)), scale)
+            if term.nnz == 0:
+                return sp.csr_matrix(W)
+            W = W + term
+    return _prune(sp.csr_matrix(np.linalg.inv(M.toarray())), scale)
+
+
+def _block_inverse(D: sp.csr_matrix, first: np.ndarray, size: np.ndarray) -> sp.csr_matrix:
+    """Inverse of a block-diagonal matrix of contiguous 1×1 and 2×2 blocks."""
+    n = D.shape[0]
+    rows, cols, vals = [], [], []
+    one = first[size == 1]
+    if len(one):
+        d = np.asarray(D[one, one]).ravel()
+        if np.any(d == 0.0):
+            raise CondensationError("an active multiplier's force on its own row is zero")
+        rows.append(one), cols.append(one), vals.append(1.0 / d)
+    two = first[size == 2]
+    if len(two):
+        a = np.asarray(D[two, two]).ravel()
+        b = np.asarray(D[two, two + 1]).ravel()
+        c = np.asarray(D[two + 1, two]).ravel()
+        d = np.asarray(D[two + 1, two + 1]).ravel()
+        det = a * d - b * c
+        if np.any(np.abs(det) <= 1e-14 * np.maximum(np.abs(a * d), np.abs(b * c))):
+            raise CondensationError("a sticking node's 2x2 multiplier block is singular")
+        for r, cc, v in ((two, two, d), (two, two + 1, -b), (two + 1, two, -c),
+                         (two + 1, two + 1, a)):
+            rows.append(r), cols.append(cc), vals.append(v / det)
+    return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows),
+                                                 np.concatenate(cols))), shape=(n, n))
+
+
+def _prune(A: sp.csr_matrix, scale: np.ndarray) -> sp.csr_matrix:
+    """A without the entries below TRUNCATION times their row's scale."""
+    rows = np.repeat(np.arange(A.shape[0]), np.diff(A.indptr))
+    A.data[np.abs(A.data) <= TRUNCATION * scale[rows]] = 0.0
+    A.eliminate_zeros()
+    return A
+
+
+# ---------------------------------------------------------------------- PETSc plumbing
+
+
+class CondensedSystem(MultiplierSystem):
+    """[u, λ] for the SNES as :class:`~.system.MultiplierSystem` lays them out, solved
+    through the condensed displacement matrix ``Kc`` (module docstring).
+
+    ``A`` is a Python matrix: the Jacobian over [u, λ] as an operator (its product, for
+    line searches and tests, from Kc, the condensation's entries and the multiplier
+    blocks); the SNES's KSP is :class:`_CondensedKSP`, and ``inner`` the KSP on Kc that
+    the options under the SNES's prefix configure.
+
+    Args:
+        residual, jacobian, u, bcs, pairs: As for :class:`~.system.MultiplierSystem`.
+        matrix: A DOLFINx matrix with the bulk and the predicted contact couplings (its
+            pattern seeds Kc's; destroyed here).
+        timings: Seconds by phase: the condensation counts as ``contact``.
+    """
+
+    condensed = True
+
+    def __init__(self, residual, jacobian, u, bcs, pairs, matrix, timings=None):
+        dof_map, n_blocks, comm = self._layout(residual, jacobian, u, bcs, pairs)
+        self.timings = timings if timings is not None else Timings()
+        self.comm = comm
+        V = u.function_space
+        self.n_global_u = dx.dof_count(V)
+        l2g = dx.local_to_global_dofs(V)
+        local = np.asarray(self.bc_dofs)
+        g = l2g[local] if len(local) else np.zeros(0, dtype=np.int64)
+        #: the Dirichlet dofs, global (DOLFINx's numbering)
+        self.skip_u = np.unique(np.concatenate(comm.allgather(g))).astype(np.int64)
+        # the multipliers: per pair with unknowns 2 per slave node, node-major
+        self._lam_pairs = [p for p in pairs if p.unknowns]
+        sizes = [2 * p.slave.n for p in self._lam_pairs]
+        self._lam_offset = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+        self.n_lam = int(self._lam_offset[-1])
+        self._node_dofs = np.concatenate(
+            [np.repeat(p.slave.dofs.astype(np.int64), 2, axis=0) for p in self._lam_pairs])
+        self._free = ~np.isin(self._node_dofs, self.skip_u)
+        own = [o for p, o in zip(pairs, self._owned) if p.unknowns]
+        self._lam_owned = np.concatenate(
+            [off + (2 * o[:, None] + np.arange(2)).ravel()
+             for off, o in zip(self._lam_offset[:-1], own)]).astype(np.int64)
+        self._bc_local = [np.isin(p.dofs, self.skip_u) for p in pairs]
+        self._lgmap_u = PETSc.LGMap().create(
+            dx.local_to_global_blocks(V).astype(PETSc.IntType), bsize=2, comm=comm)
+        self._nullspace = near_nullspace(V)
+        self._all_cols = PETSc.IS().createStride(self.n_global_u, 0, 1, comm=PETSc.COMM_SELF)
+        indptr, indices, _ = matrix.getValuesCSR()
+        r0 = matrix.getOwnershipRange()[0]
+        self._watch = np.unique(np.concatenate([p.dofs for p in pairs])).astype(np.int64)
+        rows, cols = self._predicted(indptr, indices.astype(np.int64), r0)
+        matrix.destroy()
+        self.Kc = self._build(indptr, indices, r0, rows, cols)
+        self._elim: Elimination | None = None
+        self._delta = None
+        n_local = 2 * self._owned_blocks
+        n_total = 2 * n_blocks
+        self.x = PETSc.Vec().createMPI((n_local, n_total), bsize=2, comm=comm)
+        self.b = self.x.duplicate()
+        self.A = PETSc.Mat().createPython(((n_local, n_total), (n_local, n_total)),
+                                          _SaddleOperator(self), comm=comm)
+        self.A.setUp()
+        self.pull(self.x)
+        self.inner = PETSc.KSP().create(comm)
+        self.inner.setOperators(self.Kc)
+        self._f, self._y = self.Kc.createVecs()
+        #: Eisenstat–Walker forcing for a Krylov inner solve (set by configure)
+        self.forcing: Forcing | None = None
+        self.last_solve = {"iterations": 0, "reason": 0, "residual": 0.0, "rtol": 0.0}
+
+    # -- the condensed matrix's pattern ------------------------------------------------
+    def _predicted(self, indptr, indices, r0):
+        """Owned (row, column) slots the condensation will likely fill: for every slave
+        node that has master candidates, the dofs its force reaches (its couplings) times
+        the rows of K of the slave nodes within PREDICTED_BAND along the chain (their bulk
+        stencils and couplings)."""
+        comm = self.comm
+        n_own = len(indptr) - 1
+        out_r, out_c = [], []
+        for p in self._lam_pairs:
+            s = p.slave
+            dofs = s.dofs.astype(np.int64)
+            # K's row pattern of every slave node (owner's rows, gathered)
+            local = dofs - r0
+            mine = np.flatnonzero(((local >= 0) & (local < n_own)).all(axis=1))
+            pats = {int(j): np.unique(np.concatenate(
+                [indices[indptr[d]:indptr[d + 1]] for d in local[j]])) for j in mine}
+            merged: dict[int, np.ndarray] = {}
+            for part in comm.allgather(pats):
+                merged.update(part)
+            reach = [np.asarray(c, dtype=np.int64) for c in p.couplings_by_node()]
+            nb = s.neighbours
+            for j in range(s.n):
+                if len(reach[j]) <= 4:      # no master candidates: never active
+                    continue
+                band, front = {j}, {j}
+                for _ in range(PREDICTED_BAND):
+                    front = {int(k) for f in front for k in nb[f] if k >= 0} - band
+                    band |= front
+                cols = np.unique(np.concatenate(
+                    [np.concatenate([merged.get(k, np.zeros(0, np.int64)), reach[k]])
+                     for k in band]))
+                rows = reach[j][(reach[j] >= r0) & (reach[j] < r0 + n_own)]
+                out_r.append(np.repeat(rows, len(cols)))
+                out_c.append(np.tile(cols, len(rows)))
+        if not out_r:
+            return np.zeros(0, np.int64), np.zeros(0, np.int64)
+        return np.concatenate(out_r), np.concatenate(out_c)
+
+    def _build(self, indptr, indices, r0: int, rows, cols) -> PETSc.Mat:
+        """Kc: the CSR pattern (owned rows, global columns) with the slots (rows, cols)
+        added, preallocated exactly; the watched rows' pattern kept for the checks."""
+        n_own = len(indptr) - 1
+        N = self.n_global_u
+        P = sp.csr_matrix((np.ones(len(indices), dtype=np.int8), indices, indptr),
+                          shape=(n_own, N))
+        if len(rows):
+            keep = ~np.isin(rows, self.skip_u) & ~np.isin(cols, self.skip_u)
+            X = sp.csr_matrix((np.ones(int(keep.sum()), dtype=np.int8),
+                               (rows[keep] - r0, cols[keep])), shape=(n_own, N))
+            P = P + X
+        P.sort_indices()
+        w = self._watch[(self._watch >= r0) & (self._watch < r0 + n_own)] - r0
+        sub = P[w].tocoo()
+        self._pattern = np.sort((w[sub.row] + r0) * np.int64(N) + sub.col)
+        J = PETSc.Mat().create(self.comm)
+        J.setSizes(((n_own, N), (n_own, N)), bsize=2)
+        J.setType(PETSc.Mat.Type.AIJ)
+        J.setPreallocationCSR((P.indptr.astype(PETSc.IntType),
+                               P.indices.astype(PETSc.IntType)))
+        J.setLGMap(self._lgmap_u, self._lgmap_u)
+        J.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
+        J.setNearNullSpace(self._nullspace)
+        return J
+
+    def _grow(self, rows: np.ndarray, cols: np.ndarray) -> None:
+        """Kc again with the slots (rows, cols) added (collective: every rank calls it)."""
+        indptr, indices, _ = self.Kc.getValuesCSR()
+        r0 = self.Kc.getOwnershipRange()[0]
+        J = self._build(indptr, indices.astype(np.int64), r0, rows, cols)
+        self.Kc.destroy()
+        self.Kc = J
+        self.inner.setOperators(J)
+        self._f, self._y = J.createVecs()
+
+    def _missing(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        """Which owned slots (rows, cols) the pattern lacks (True where missing)."""
+        keys = rows.astype(np.int64) * np.int64(self.n_global_u) + cols
+        pat = self._pattern
+        at = np.minimum(np.searchsorted(pat, keys), max(len(pat) - 1, 0))
+        return (pat[at] != keys) if len(pat) else np.ones(len(keys), dtype=bool)
+
+    # -- the Jacobian -------------------------------------------------------------------
+    def assemble_jacobian(self, A, add_contact) -> None:
+        """Kc = the condensed Jacobian at the current state (``A``, the operator, needs no
+        assembly: its product reads Kc and the condensation). The pairs' tangents are
+        taken here (``add_contact``, the saddle-point insertion, is not used)."""
+        timings = self.timings
+        with timings("contact"):
+            uu, B, Cu, Cl = self._pair_blocks()
+            elim = Elimination(self.n_global_u, B, Cu, Cl, self._node_dofs, self._free)
+        r0, r1 = self.Kc.getOwnershipRange()
+        mine = (uu[0] >= r0) & (uu[0] < r1)
+        uu = tuple(a[mine] for a in uu)
+        if self._any(self._missing(uu[0], uu[1]).any()):
+            self._grow(uu[0], uu[1])
+        for attempt in range(2):
+            dx.assemble_jacobian(self.Kc, self.jacobian_form, self.bcs,
+                                 extra=lambda K: self._insert(K, *uu))
+            with timings("contact"), timings("contact_condensation"):
+                PK = self._rows_of_K(elim.p_rows)
+                rows, D = elim.delta(PK, (r0, r1))
+                coo = D.tocoo()
+                grow = rows[coo.row], coo.col
+                missing = self._missing(*grow)
+            if attempt == 0 and self._any(missing.any()):
+                self._grow(grow[0][missing], grow[1][missing])
+                continue
+            break
+        with timings("contact"), timings("contact_condensation"):
+            self._insert(self.Kc, rows[coo.row], coo.col, coo.data)
+            self.Kc.assemble()
+        self._elim, self._delta = elim, (rows, D)
+        self._B, self._Cu, self._Cl = sp.csc_matrix(B), sp.csr_matrix(Cu), sp.csr_matrix(Cl)
+        # the columns of P K and ∂C_E/∂u, compressed, for the recovery of Δλ
+        cols = np.unique(np.concatenate([PK.indices, elim.Cu_E.indices]).astype(np.int64))
+        self._recovery = (cols, _compress(PK, cols), _compress(elim.Cu_E, cols))
+
+    def _any(self, flag: bool) -> bool:
+        return bool(self.comm.allreduce(bool(flag), op=MPI.LOR))
+
+    def _insert(self, K: PETSc.Mat, rows, cols, vals) -> None:
+        """K[rows, cols] += vals (owned rows, global numbers; repeated entries summed)."""
+        if not len(rows):
+            return
+        u, inv = np.unique(rows, return_inverse=True)
+        M = sp.csr_matrix((vals, (inv, cols)), shape=(len(u), self.n_global_u))
+        M.sum_duplicates()
+        K.setValuesIJV(M.indptr.astype(PETSc.IntType), M.indices.astype(PETSc.IntType),
+                       M.data, addv=PETSc.InsertMode.ADD, rowmap=u.astype(PETSc.IntType))
+
+    def _pair_blocks(self):
+        """The pairs' tangents split into the displacement block (owned rows) and the
+        multiplier blocks B = ∂R_u/∂λ, Cu = ∂C/∂u, Cl = ∂C/∂λ of the whole system (gathered
+        from every rank); Dirichlet rows and columns left out."""
+        uu, bl, cu, cl = ([], [], []), ([], [], []), ([], [], []), ([], [], [])
+        k = 0
+        for p, bc in zip(self.pairs, self._bc_local):
+            K = p.tangent().tocoo()
+            r, c, v = K.row, K.col, K.data
+            n_test = len(p.dofs)
+            ru, cu_ = r < n_test, c < n_test
+            dofs = p.dofs.astype(np.int64)
+            sel = ru & cu_ & (v != 0.0)
+            sel[sel] = ~bc[r[sel]] & ~bc[c[sel]]
+            for a, x in zip(uu, (dofs[r[sel]], dofs[c[sel]], v[sel])):
+                a.append(x)
+            if not p.unknowns:
+                continue
+            off = self._lam_offset[k]
+            k += 1
+            sel = ru & ~cu_ & (v != 0.0)
+            sel[sel] = ~bc[r[sel]]
+            for a, x in zip(bl, (dofs[r[sel]], off + c[sel] - n_test, v[sel])):
+                a.append(x)
+            sel = ~ru & cu_ & (v != 0.0)
+            sel[sel] = ~bc[c[sel]]
+            for a, x in zip(cu, (off + r[sel] - n_test, dofs[c[sel]], v[sel])):
+                a.append(x)
+            sel = ~ru & ~cu_ & (v != 0.0)
+            for a, x in zip(cl, (off + r[sel] - n_test, off + c[sel] - n_test, v[sel])):
+                a.append(x)
+        parts = [tuple(np.concatenate(a) if a else np.zeros(0) for a in t)
+                 for t in (uu, bl, cu, cl)]
+        if self.comm.size > 1:
+            gathered = self.comm.allgather(parts)
+            parts = [tuple(np.concatenate([g[i][j] for g in gathered]) for j in range(3))
+                     for i in range(4)]
+        (ur, uc, uv), blk, cuk, clk = parts
+        n_u, n_lam = self.n_global_u, self.n_lam
+        B = sp.coo_matrix((blk[2], (blk[0].astype(np.int64), blk[1].astype(np.int64))),
+                          shape=(n_u, n_lam))
+        Cu = sp.coo_matrix((cuk[2], (cuk[0].astype(np.int64), cuk[1].astype(np.int64))),
+                           shape=(n_lam, n_u))
+        Cl = sp.coo_matrix((clk[2], (clk[0].astype(np.int64), clk[1].astype(np.int64))),
+                           shape=(n_lam, n_lam))
+        return (ur.astype(np.int64), uc.astype(np.int64), uv), B, Cu, Cl
+
+    def _rows_of_K(self, rows: np.ndarray) -> sp.csr_matrix:
+        """The rows ``rows`` (global, any rank's) of the assembled Kc, on every rank."""
+        u, inv = np.unique(rows, return_inverse=True)
+        isr = PETSc.IS().createGeneral(u.astype(PETSc.IntType), comm=PETSc.COMM_SELF)
+        (sub,) = self.Kc.createSubMatrices(isr, self._all_cols)
+        indptr, indices, vals = sub.getValuesCSR()
+        sub.destroy()
+        isr.destroy()
+        M = sp.csr_matrix((vals, indices, indptr), shape=(len(u), self.n_global_u))
+        return sp.csr_matrix(M[inv])
+
+    # -- the linear solve ---------------------------------------------------------------
+    def _gather(self, local: np.ndarray, first: int, rows: np.ndarray) -> np.ndarray:
+        """Values of a distributed vector (this rank's part ``local``, starting at global
+        ``first``) at the global ``rows``, on every rank."""
+        at = rows - first
+        mine = (at >= 0) & (at < len(local))
+        out = np.zeros(len(rows))
+        out[mine] = local[at[mine]]
+        if self.comm.size > 1:
+            out = self.comm.allreduce(out, op=MPI.SUM)
+        return out
+
+    def _lam_values(self, arr: np.ndarray) -> np.ndarray:
+        """The multiplier entries of an extended local array, gathered: (n_lam,)."""
+        out = np.zeros(self.n_lam)
+        out[self._lam_owned] = arr[self.n_u:]
+        if self.comm.size > 1:
+            out = self.comm.allreduce(out, op=MPI.SUM)
+        return out
+
+    def _u_at(self, y: PETSc.Vec, cols: np.ndarray) -> np.ndarray:
+        r0 = y.getOwnershipRange()[0]
+        return self._gather(y.array_r, r0, cols)
+
+    def solve(self, b: PETSc.Vec, x: PETSc.Vec, fnorm_iteration: int) -> tuple[int, int]:
+        """x = J⁻¹ b through the condensed system. Returns (inner iterations, reason)."""
+        elim = self._elim
+        arr = b.array_r
+        r0, r1 = self.Kc.getOwnershipRange()
+        b_lam = self._lam_values(arr)
+        b_u = arr[: self.n_u]
+        b_P = self._gather(b_u, r0, elim.p_rows)
+        f = self._f
+        fa = f.array
+        fa[:] = b_u
+        add_rows, add, set_rows, values = elim.rhs_update(b_P, b_lam[elim.H], (r0, r1))
+        fa[add_rows - r0] += add                # B_rows are unique
+        fa[set_rows - r0] = values
+        if self.forcing is not None:
+            rtol = self.forcing.rtol(b.norm(), fnorm_iteration)
+            self.inner.setTolerances(rtol=rtol)
+        y = self._y
+        y.set(0.0)
+        self.inner.solve(f, y)
+        reason = self.inner.getConvergedReason()
+        its = self.inner.getIterationNumber()
+        self.last_solve = {"iterations": its, "reason": int(reason),
+                           "residual": float(self.inner.getResidualNorm()),
+                           "rtol": float(self.inner.getTolerances()[0])}
+        cols, PKc, CuEc = self._recovery
+        yc = self._u_at(y, cols)
+        dlam = elim.recover(b_lam, b_P, PKc @ yc, CuEc @ yc)
+        out = x.array
+        out[: self.n_u] = y.array_r
+        out[self.n_u:] = dlam[self._lam_owned]
+        return its, reason
+
+    def mult(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
+        """y = J x, J the Jacobian over [u, λ]: K = Kc − (the condensation's entries)."""
+        rows, D = self._delta
+        arr = x.array_r
+        r0, r1 = self.Kc.getOwnershipRange()
+        f, g = self._f, self._y
+        f.array[:] = arr[: self.n_u]
+        self.Kc.mult(f, g)
+        lam = self._lam_values(arr)
+        B, Cu, Cl = self._B, self._Cu, self._Cl
+        cols = np.unique(np.concatenate([D.indices, Cu.indices]).astype(np.int64))
+        full = np.zeros(self.n_global_u)
+        full[cols] = self._u_at(f, cols)
+        out_u = g.array_r.copy()
+        out_u[rows - r0] -= D @ full              # the rows of Δ are unique
+        Bx = B @ lam
+        nz = np.flatnonzero(Bx)
+        own = nz[(nz >= r0) & (nz < r1)]
+        out_u[own - r0] += Bx[own]
+        ylam = Cu @ full + Cl @ lam
+        out = y.array
+        out[: self.n_u] = out_u
+        out[self.n_u:] = ylam[self._lam_owned]
+
+    def owned_objects(self) -> list:
+        return [self.b_u, self._lgmap, self._lgmap_u, self.Kc, self.inner, self._f, self._y,
+                self._all_cols, self._nullspace]
+
+    def configure(self, snes: PETSc.SNES, applied) -> None:
+        """The SNES's KSP becomes the condensing one; the options under the prefix
+        configure the inner KSP on Kc."""
+        prefix = snes.getOptionsPrefix() or ""
+        ksp = snes.getKSP()
+        ksp.setOptionsPrefix(prefix + "condensed_")
+        ksp.setType(PETSc.KSP.Type.PYTHON)
+        ksp.setPythonContext(_CondensedKSP(self, snes))
+        ksp.getPC().setType(PETSc.PC.Type.NONE)
+        self.inner.setOptionsPrefix(prefix)
+        applied.set_from_options(snes, extra=[self.inner])
+        # a Krylov inner solve without a tolerance of the user's: inexact Newton
+        self.forcing = (Forcing() if self.inner.getType() != PETSc.KSP.Type.PREONLY
+                        and "ksp_rtol" not in applied.options else None)
+
+
+def _compress(A: sp.csr_matrix, cols: np.ndarray) -> sp.csr_matrix:
+    """A with its columns renumbered as their positions in the sorted ``cols``."""
+    return sp.csr_matrix((A.data, np.searchsorted(cols, A.indices), A.indptr),
+                         shape=(A.shape[0], len(cols)))
+
+
+class Forcing:
+    """Eisenstat–Walker forcing terms (their choice 2, γ = 0.9, α = 2, with the usual
+    safeguard): the inner solve's relative tolerance from the ratio of the last two
+    residual norms, so that early Newton steps are solved loosely and the last ones
+    tightly (quadratic convergence kept)."""
+
+    gamma, alpha, eta0, eta_max, eta_min = 0.9, 2.0, 1e-2, 1e-2, 1e-12
+
+    def __init__(self):
+        self._last: tuple[float, float] | None = None
+
+    def rtol(self, fnorm: float, iteration: int) -> float:
+        if iteration == 0 or self._last is None:
+            eta = self.eta0
+        else:
+            f_prev, eta_prev = self._last
+            eta = self.gamma * (fnorm / f_prev) ** self.alpha
+            safe = self.gamma * eta_prev ** self.alpha
+            if safe > 0.1:
+                eta = max(eta, safe)
+        eta = min(max(eta, self.eta_min), self.eta_max)
+        self._last = (fnorm, eta)
+        return eta
+
+
+class _CondensedKSP:
+    """The SNES's KSP (type python): one condensed solve (CondensedSystem.solve)."""
+
+    def __init__(self, system: CondensedSystem, snes: PETSc.SNES):
+        self._system = weakref.ref(system)
+        self._snes = weakref.ref(snes)
+
+    @property
+    def inner(self):
+        s = self._system()
+        return None if s is None else s.inner
+
+    def setUp(self, ksp) -> None:
+        pass
+
+    def reset(self, ksp) -> None:
+        s = self._system()
+        if s is not None:
+            s.inner.reset()
+
+    def solve(self, ksp, b, x) -> None:
+        s, snes = self._system(), self._snes()
+        it = snes.getIterationNumber() if snes is not None else 0
+        its, reason = s.solve(b, x, it)
+        ksp.setIterationNumber(its)
+        ksp.setConvergedReason(reason if reason < 0
+                               else PETSc.KSP.ConvergedReason.CONVERGED_RTOL)
+
+
+class _SaddleOperator:
+    """The Jacobian over [u, λ] as a Python matrix (CondensedSystem.mult)."""
+
+    def __init__(self, system: CondensedSystem):
+        self._system = weakref.ref(system)
+
+    def mult(self, mat, x, y) -> None:
+        self._system().mult(x, y)
