@@ -103,25 +103,14 @@ class Elimination:
             raise CondensationError(
                 "a multiplier with an invertible row of its own acts on the displacement "
                 "rows: the condensation has no rule for that enforcement")
-        # the hard multipliers of one slave node side by side (the node's block of M)
-        key = node_dofs[H, 0] // 2
-        order = np.argsort(key, kind="stable")
-        H, key = H[order], key[order]
-        first = np.flatnonzero(np.r_[True, key[1:] != key[:-1]]) if len(H) else H
-        size = np.diff(np.r_[first, len(H)])
-        if np.any(size > 2):
-            raise CondensationError("more than two active multipliers on one slave node "
-                                    "(two pairs sharing a slave surface, both sticking)")
-        group = np.repeat(np.arange(len(first)), size)
-        self.H, self.E = H, E
         Bh = sp.csr_matrix(Bc[:, H])
-        self.p_rows = self._rows(Bh, rows, H, node_dofs, free, first, size)
+        order, self.p_rows, first, size = self._rows(Bh, rows, H, node_dofs, free)
+        H = H[order]
+        Bh = sp.csr_matrix(Bh[:, order])
+        self.H, self.E = H, E
         at = np.searchsorted(rows, self.p_rows)
-        if len(at) and not np.array_equal(rows[np.minimum(at, len(rows) - 1)], self.p_rows):
-            raise CondensationError("an active multiplier exerts no force on its slave "
-                                    "node's displacement rows")
         M = sp.csr_matrix(Bh[at])                              # M = P B_H, rows as H
-        self.W = _inverse(M, group, first, size) if len(H) else sp.csr_matrix((0, 0))
+        self.W = _inverse(M, first, size) if len(H) else sp.csr_matrix((0, 0))
         used = np.flatnonzero(np.diff(Bh.indptr))              # u-rows B_H acts on
         self.B_rows = rows[used]
         self.BHW = sp.csr_matrix(Bh[used] @ self.W)
@@ -134,31 +123,70 @@ class Elimination:
         self.n_lam = n_lam
 
     @staticmethod
-    def _rows(Bh: sp.csr_matrix, rows: np.ndarray, H, node_dofs, free, first,
-              size) -> np.ndarray:
-        """The displacement row P of every hard multiplier: both rows of a node with two,
-        else the node's free row on which the multiplier's force is larger."""
-        p = np.empty(len(H), dtype=np.int64)
-        dofs, ok = node_dofs[H], free[H]
-        two = np.repeat(size == 2, size)
-        if two.any():
-            if not ok[two].all():
-                raise CondensationError("a sticking slave node with a Dirichlet condition: "
-                                        "its multipliers have no displacement rows")
-            lead = first[size == 2]
-            p[lead], p[lead + 1] = dofs[lead, 0], dofs[lead, 1]
-        one = np.flatnonzero(~two)
-        if len(one):
-            val = np.zeros((len(one), 2))
-            for c in (0, 1):
-                val[:, c] = _entries(Bh, rows, dofs[one, c], one)
-            val[~ok[one]] = 0.0
-            pick = np.argmax(np.abs(val), axis=1)
-            if np.any(val[np.arange(len(one)), pick] == 0.0):
-                raise CondensationError("an active multiplier exerts no force on its slave "
-                                        "node's free displacement rows")
-            p[one] = dofs[one, pick]
-        return p
+    def _rows(Bh: sp.csr_matrix, rows: np.ndarray, H, node_dofs, free):
+        """The displacement row P of every hard multiplier (columns of Bh, in H's order),
+        and the blocks of M = P B_H: the rows of the multiplier's own slave node, where the
+        dual basis makes its force dominant — both rows for a node with two hard
+        multipliers whose forces are not nearly parallel (a 2×2 block), else the node's
+        free row with the larger force if that is at least a tenth of the multiplier's
+        largest (a 1×1 block). A multiplier left without (a sticking node with a Dirichlet
+        dof) takes the row of its largest force that no other has (a master node's).
+
+        Returns:
+            (order of H's multipliers, their P rows, first index and size of each block).
+        """
+        n = len(H)
+        key = node_dofs[H, 0] // 2
+        node = np.unique(key, return_inverse=True)[1] if n else np.zeros(0, np.int64)
+        count = np.bincount(node) if n else np.zeros(0, np.int64)
+        if np.any(count > 2):
+            raise CondensationError("more than two active multipliers on one slave node "
+                                    "(two pairs sharing a slave surface, both sticking)")
+        val = np.zeros((n, 2))
+        for c in (0, 1):
+            val[:, c] = _entries(Bh, rows, node_dofs[H, c], np.arange(n))
+        val[~free[H]] = 0.0
+        colmax = np.asarray(abs(Bh).max(axis=0).todense()).ravel() if n else np.zeros(0)
+        p = np.full(n, -1, dtype=np.int64)
+        blocks: list[np.ndarray] = []
+        # nodes with two: a 2x2 block when both rows are free and the forces not parallel
+        pairs = np.flatnonzero(count == 2)
+        if len(pairs):
+            members = np.argsort(node, kind="stable").reshape(-1)
+            members = members[np.isin(node[members], pairs)].reshape(-1, 2)
+            a, b = members[:, 0], members[:, 1]
+            det = np.abs(val[a, 0] * val[b, 1] - val[a, 1] * val[b, 0])
+            good = det >= 0.1 * np.hypot(*val[a].T) * np.hypot(*val[b].T)
+            good &= (det > 0)
+            p[a[good]], p[b[good]] = node_dofs[H[a[good]], 0], node_dofs[H[b[good]], 1]
+            blocks += [m for m in members[good]]
+        single = np.flatnonzero(p < 0)
+        if len(single):
+            pick = np.argmax(np.abs(val[single]), axis=1)
+            big = np.abs(val[single, pick]) >= 0.1 * colmax[single]
+            taken = np.isin(node_dofs[H[single], pick], p)
+            ok = big & ~taken
+            # two singles of one node on the same row: the second is exceptional
+            rows_ok = node_dofs[H[single[ok]], pick[ok]]
+            _, firsts = np.unique(rows_ok, return_index=True)
+            keep = np.zeros(ok.sum(), dtype=bool)
+            keep[firsts] = True
+            ok[np.flatnonzero(ok)[~keep]] = False
+            p[single[ok]] = node_dofs[H[single[ok]], pick[ok]]
+            blocks += [np.array([k]) for k in single[ok]]
+        for k in np.flatnonzero(p < 0):   # rare: no usable row of its own node
+            col = sp.csc_matrix(Bh[:, k])
+            cand = rows[col.indices[np.argsort(-np.abs(col.data))]]
+            cand = cand[~np.isin(cand, p)]
+            if not len(cand):
+                raise CondensationError("an active multiplier has no displacement row to "
+                                        "be eliminated through")
+            p[k] = cand[0]
+            blocks.append(np.array([k]))
+        order = np.concatenate(blocks) if blocks else np.zeros(0, np.int64)
+        size = np.array([len(b) for b in blocks], dtype=np.int64)
+        first = np.concatenate([[0], np.cumsum(size)[:-1]]).astype(np.int64)
+        return order, p[order], first, size
 
     # -- the condensed matrix ---------------------------------------------------------
     def delta(self, PK: sp.csr_matrix, owned: tuple[int, int]) -> tuple[np.ndarray,
@@ -240,14 +268,15 @@ def _entries(A: sp.csr_matrix, rows: np.ndarray, r: np.ndarray, c: np.ndarray
     return out
 
 
-def _inverse(M: sp.csr_matrix, group: np.ndarray, first: np.ndarray,
-             size: np.ndarray) -> sp.csr_matrix:
-    """M⁻¹ for M = D + E with D block-diagonal (one 1×1 or 2×2 block per slave node) and E
-    the couplings of neighbouring nodes: the Neumann series Σ (−D⁻¹E)^k D⁻¹, every term's
-    entries below TRUNCATION of their row's diagonal-block scale dropped (the terms fall
-    geometrically, each reaching one node further along the chain); the dense inverse
-    where ‖D⁻¹E‖∞ is not small."""
+def _inverse(M: sp.csr_matrix, first: np.ndarray, size: np.ndarray) -> sp.csr_matrix:
+    """M⁻¹ for M = D + E with D block-diagonal (contiguous 1×1 and 2×2 blocks, one per
+    slave node) and E the couplings of neighbouring nodes, its entries below TRUNCATION of
+    their row's diagonal-block scale dropped. Where ‖D⁻¹E‖∞ is small (the dual basis: the
+    forces of a node's neighbours on its rows are ~1e-3 of its own), the Neumann series
+    Σ (−D⁻¹E)^k D⁻¹, each term reaching one node further along the chain; else the exact
+    inverse by sparse LU, column block by column block, pruned alike."""
     n = M.shape[0]
+    group = np.repeat(np.arange(len(first)), size)
     coo = M.tocoo()
     same = group[coo.row] == group[coo.col]
     D = sp.csr_matrix((coo.data[same], (coo.row[same], coo.col[same])), shape=(n, n))
@@ -263,7 +292,17 @@ def _inverse(M: sp.csr_matrix, group: np.ndarray, first: np.ndarray,
             if term.nnz == 0:
                 return sp.csr_matrix(W)
             W = W + term
-    return _prune(sp.csr_matrix(np.linalg.inv(M.toarray())), scale)
+    try:
+        lu = spla.splu(sp.csc_matrix(M))
+    except RuntimeError:
+        raise CondensationError("the active multipliers' forces on their rows are "
+                                "singular (M = P B_H)") from None
+    parts = []
+    for c0 in range(0, n, 256):
+        rhs = np.zeros((n, min(256, n - c0)))
+        rhs[c0 + np.arange(rhs.shape[1]), np.arange(rhs.shape[1])] = 1.0
+        parts.append(_prune(sp.csr_matrix(lu.solve(rhs)), scale))
+    return sp.csr_matrix(sp.hstack(parts))
 
 
 def _block_inverse(D: sp.csr_matrix, first: np.ndarray, size: np.ndarray) -> sp.csr_matrix:
@@ -274,7 +313,7 @@ def _block_inverse(D: sp.csr_matrix, first: np.ndarray, size: np.ndarray) -> sp.
     if len(one):
         d = np.asarray(D[one, one]).ravel()
         if np.any(d == 0.0):
-            raise CondensationError("an active multiplier's force on its own row is zero")
+            raise CondensationError("an active multiplier's force on its row is zero")
         rows.append(one), cols.append(one), vals.append(1.0 / d)
     two = first[size == 2]
     if len(two):
