@@ -104,7 +104,9 @@ class Elimination:
                 "a multiplier with an invertible row of its own acts on the displacement "
                 "rows: the condensation has no rule for that enforcement")
         Bh = sp.csr_matrix(Bc[:, H])
-        order, self.p_rows, first, size = self._rows(Bh, rows, H, node_dofs, free)
+        Cu = sp.csr_matrix(Cu)
+        order, self.p_rows, first, size = self._rows(Bh, rows, H, node_dofs, free,
+                                                     sp.csr_matrix(Cu[H]))
         H = H[order]
         Bh = sp.csr_matrix(Bh[:, order])
         self.H, self.E = H, E
@@ -114,8 +116,17 @@ class Elimination:
         used = np.flatnonzero(np.diff(Bh.indptr))              # u-rows B_H acts on
         self.B_rows = rows[used]
         self.BHW = sp.csr_matrix(Bh[used] @ self.W)
-        Cu = sp.csr_matrix(Cu)
-        self.G = sp.csr_matrix(Cu[H])                          # rows of H, cols global u
+        self.G = G = sp.csr_matrix(Cu[H])                      # rows of H, cols global u
+        # second stage: the constraint rows G eliminate the displacements P, with
+        # G_PP = G[:, P] as nearly diagonal as M (the same dual-basis argument)
+        in_p = np.isin(G.indices, self.p_rows)
+        G_PP = sp.csr_matrix(G[:, self.p_rows])
+        self.Y = _inverse(G_PP, first, size) if len(H) else sp.csr_matrix((0, 0))
+        G_R = G.copy()
+        G_R.data[in_p] = 0.0
+        G_R.eliminate_zeros()
+        self.YG = sp.csr_matrix(self.Y @ G_R)                  # Δu_P = Y b_H − YG Δu
+        self._Kc_RP = None
         self.Cu_E = sp.csr_matrix(Cu[E])
         self.Cl_EH = sp.csr_matrix(Cl[E][:, H])
         Cl_EE = sp.csc_matrix(Cl[E][:, E])
@@ -123,14 +134,16 @@ class Elimination:
         self.n_lam = n_lam
 
     @staticmethod
-    def _rows(Bh: sp.csr_matrix, rows: np.ndarray, H, node_dofs, free):
+    def _rows(Bh: sp.csr_matrix, rows: np.ndarray, H, node_dofs, free, G: sp.csr_matrix):
         """The displacement row P of every hard multiplier (columns of Bh, in H's order),
         and the blocks of M = P B_H: the rows of the multiplier's own slave node, where the
         dual basis makes its force dominant — both rows for a node with two hard
         multipliers whose forces are not nearly parallel (a 2×2 block), else the node's
         free row with the larger force if that is at least a tenth of the multiplier's
         largest (a 1×1 block). A multiplier left without (a sticking node with a Dirichlet
-        dof) takes the row of its largest force that no other has (a master node's).
+        dof) takes the row of its largest force that no other has (a master node's). Of
+        the choices left, the one that puts the larger entries of the constraint rows G
+        on Kc's diagonal (an iterative solver's smoother divides by it).
 
         Returns:
             (order of H's multipliers, their P rows, first index and size of each block).
@@ -142,9 +155,10 @@ class Elimination:
         if np.any(count > 2):
             raise CondensationError("more than two active multipliers on one slave node "
                                     "(two pairs sharing a slave surface, both sticking)")
-        val = np.zeros((n, 2))
+        val, gval = np.zeros((n, 2)), np.zeros((n, 2))
         for c in (0, 1):
             val[:, c] = _entries(Bh, rows, node_dofs[H, c], np.arange(n))
+            gval[:, c] = _entries(G, np.arange(n), np.arange(n), node_dofs[H, c])
         val[~free[H]] = 0.0
         colmax = np.asarray(abs(Bh).max(axis=0).todense()).ravel() if n else np.zeros(0)
         p = np.full(n, -1, dtype=np.int64)
@@ -158,12 +172,18 @@ class Elimination:
             det = np.abs(val[a, 0] * val[b, 1] - val[a, 1] * val[b, 0])
             good = det >= 0.1 * np.hypot(*val[a].T) * np.hypot(*val[b].T)
             good &= (det > 0)
-            p[a[good]], p[b[good]] = node_dofs[H[a[good]], 0], node_dofs[H[b[good]], 1]
+            # a's constraint on the x or the y row: the larger diagonal of Kc
+            swap = (np.abs(gval[a, 1] * gval[b, 0]) > np.abs(gval[a, 0] * gval[b, 1]))
+            ca = swap.astype(np.int64)
+            p[a[good]] = node_dofs[H[a[good]], ca[good]]
+            p[b[good]] = node_dofs[H[b[good]], 1 - ca[good]]
             blocks += [m for m in members[good]]
         single = np.flatnonzero(p < 0)
         if len(single):
-            pick = np.argmax(np.abs(val[single]), axis=1)
-            big = np.abs(val[single, pick]) >= 0.1 * colmax[single]
+            usable = np.abs(val[single]) >= 0.1 * colmax[single, None]
+            usable &= np.abs(val[single]) > 0
+            pick = np.argmax(np.where(usable, np.abs(gval[single]) + 1e-300, -1.0), axis=1)
+            big = usable[np.arange(len(single)), pick]
             taken = np.isin(node_dofs[H[single], pick], p)
             ok = big & ~taken
             # two singles of one node on the same row: the second is exceptional
@@ -189,41 +209,77 @@ class Elimination:
         return order, p[order], first, size
 
     # -- the condensed matrix ---------------------------------------------------------
-    def delta(self, PK: sp.csr_matrix, owned: tuple[int, int]) -> tuple[np.ndarray,
-                                                                          sp.csr_matrix]:
-        """What to add to K's owned rows for J_c: −B_H W P K on the rows B_H acts on
-        outside P, G_H − K_P on the rows P.
+    def coupled_rows(self, PK: sp.csr_matrix) -> np.ndarray:
+        """The rows outside P that can hold entries in the columns P once the multipliers
+        are eliminated: those of K's pattern there (K's pattern is structurally symmetric:
+        the columns of K's rows P) and those B_H acts on."""
+        rows = np.union1d(np.unique(PK.indices).astype(np.int64), self.B_rows)
+        return rows[~np.isin(rows, self.p_rows)]
+
+    def delta(self, PK: sp.csr_matrix, rows: np.ndarray, K_RP: sp.csr_matrix,
+              owned: tuple[int, int]) -> tuple[np.ndarray, sp.csr_matrix]:
+        """What to add to the assembled K for the condensed matrix Kc on this rank's rows:
+        with Π K = K − B_H W P K (the multipliers eliminated through the rows P), then the
+        displacements P eliminated through the constraints G (Kc_P· = G):
+
+            rows R:  Kc_RR = (Π K)_RR − (Π K)_RP Y G_PR,   Kc_RP = 0
+            rows P:  the identity (Δu_P is recovered from the constraints)
 
         Args:
-            PK: The rows ``p_rows`` of the assembled K, (n_H, n_u).
+            PK: The rows P of the assembled K, (n_H, n_u), in the order of H.
+            rows: :meth:`coupled_rows`, global.
+            K_RP: K[rows, P], (len(rows), n_H).
             owned: This rank's row range [r0, r1).
 
         Returns:
             (global rows, CSR over them with global columns).
         """
         r0, r1 = owned
-        in_p = np.isin(self.B_rows, self.p_rows)
-        keep = (~in_p) & (self.B_rows >= r0) & (self.B_rows < r1)
-        D1 = -(sp.csr_matrix(self.BHW[keep]) @ PK)
-        mine = (self.p_rows >= r0) & (self.p_rows < r1)
-        D2 = sp.csr_matrix(self.G[mine] - PK[mine])
-        rows = np.concatenate([self.B_rows[keep], self.p_rows[mine]])
-        return rows, sp.csr_matrix(sp.vstack([D1, D2], format="csr"))
+        # (Π K)_RP on the coupled rows: −B_H W K_PP added where B_H acts
+        at = np.searchsorted(self.B_rows, rows)
+        hit = at < len(self.B_rows)
+        hit[hit] = self.B_rows[at[hit]] == rows[hit]
+        BHW_rows = sp.csr_matrix((np.ones(int(hit.sum())), (np.flatnonzero(hit), at[hit])),
+                                 shape=(len(rows), len(self.B_rows))) @ self.BHW
+        PK_P = sp.csr_matrix(PK[:, self.p_rows]) if len(self.p_rows) else \
+            sp.csr_matrix((0, 0))
+        Kc_RP = sp.csr_matrix(K_RP - BHW_rows @ PK_P)
+        self._Kc_RP = (rows, Kc_RP)
+        mine = (rows >= r0) & (rows < r1)
+        n_u = PK.shape[1]
+        # zero the columns P, add −(Π K)_RP Y G_PR, and −B_H W P K where B_H acts
+        to_p = sp.csr_matrix((np.ones(len(self.p_rows)), (np.arange(len(self.p_rows)),
+                                                          self.p_rows)),
+                             shape=(len(self.p_rows), n_u))
+        D_R = -(BHW_rows[mine] @ PK) - Kc_RP[mine] @ (self.YG + to_p)
+        mp = (self.p_rows >= r0) & (self.p_rows < r1)
+        D_P = sp.csr_matrix(to_p[mp] - PK[mp])
+        out_rows = np.concatenate([rows[mine], self.p_rows[mp]])
+        return out_rows, sp.csr_matrix(sp.vstack([sp.csr_matrix(D_R), D_P], format="csr"))
 
     # -- right-hand side and recovery ---------------------------------------------------
     def rhs_update(self, b_P: np.ndarray, b_H: np.ndarray, owned: tuple[int, int]):
-        """The condensed right-hand side's changes to b_u on this rank's rows: the rows B_H
-        acts on outside P get −B_H W b_P added, the rows P become b_H.
+        """The condensed right-hand side's changes to b_u on this rank's rows: on R,
+        −B_H W b_P where B_H acts and −(Π K)_RP Y b_H on the coupled rows; the rows P
+        become 0 (Δu_P is recovered by :meth:`displacements_P`).
 
         Returns:
             (rows added to, values; rows set, values), global rows.
         """
         r0, r1 = owned
-        in_p = np.isin(self.B_rows, self.p_rows)
-        keep = (~in_p) & (self.B_rows >= r0) & (self.B_rows < r1)
-        add = -(self.BHW[keep] @ b_P)
-        mine = (self.p_rows >= r0) & (self.p_rows < r1)
-        return self.B_rows[keep], add, self.p_rows[mine], b_H[mine]
+        rows, Kc_RP = self._Kc_RP          # (the coupled rows hold every B_H row but P)
+        add = Kc_RP @ (self.Y @ b_H)
+        at = np.searchsorted(self.B_rows, rows)
+        hit = at < len(self.B_rows)
+        hit[hit] = self.B_rows[at[hit]] == rows[hit]
+        add[hit] += self.BHW[at[hit]] @ b_P
+        mine = (rows >= r0) & (rows < r1)
+        mp = (self.p_rows >= r0) & (self.p_rows < r1)
+        return rows[mine], -add[mine], self.p_rows[mp], np.zeros(int(mp.sum()))
+
+    def displacements_P(self, b_H: np.ndarray, YG_du: np.ndarray) -> np.ndarray:
+        """Δu at the rows P from the constraints: Y (b_H − G_PR Δu_R)."""
+        return self.Y @ b_H - YG_du
 
     def recover(self, b_lam: np.ndarray, b_P: np.ndarray, PK_du: np.ndarray,
                 CuE_du: np.ndarray) -> np.ndarray:
@@ -512,7 +568,9 @@ class CondensedSystem(MultiplierSystem):
                                  extra=lambda K: self._insert(K, *uu))
             with timings("contact"), timings("contact_condensation"):
                 PK = self._rows_of_K(elim.p_rows)
-                rows, D = elim.delta(PK, (r0, r1))
+                coupled = elim.coupled_rows(PK)
+                K_RP = self._block_of_K(coupled, elim.p_rows)
+                rows, D = elim.delta(PK, coupled, K_RP, (r0, r1))
                 coo = D.tocoo()
                 grow = rows[coo.row], coo.col
                 missing = self._missing(*grow)
@@ -525,9 +583,11 @@ class CondensedSystem(MultiplierSystem):
             self.Kc.assemble()
         self._elim, self._delta = elim, (rows, D)
         self._B, self._Cu, self._Cl = sp.csc_matrix(B), sp.csr_matrix(Cu), sp.csr_matrix(Cl)
-        # the columns of P K and ∂C_E/∂u, compressed, for the recovery of Δλ
+        # the columns of P K, ∂C_E/∂u and Y G, compressed, for the recovery of Δu_P, Δλ
         cols = np.unique(np.concatenate([PK.indices, elim.Cu_E.indices]).astype(np.int64))
-        self._recovery = (cols, _compress(PK, cols), _compress(elim.Cu_E, cols))
+        ycols = np.unique(elim.YG.indices).astype(np.int64)
+        self._recovery = (cols, _compress(PK, cols), _compress(elim.Cu_E, cols), ycols,
+                          _compress(elim.YG, ycols))
 
     def _any(self, flag: bool) -> bool:
         return bool(self.comm.allreduce(bool(flag), op=MPI.LOR))
@@ -589,6 +649,18 @@ class CondensedSystem(MultiplierSystem):
                            shape=(n_lam, n_lam))
         return (ur.astype(np.int64), uc.astype(np.int64), uv), B, Cu, Cl
 
+    def _block_of_K(self, rows: np.ndarray, cols: np.ndarray) -> sp.csr_matrix:
+        """Kc[rows, cols] (global, any rank's; ``rows`` sorted), on every rank."""
+        u, inv = np.unique(cols, return_inverse=True)
+        isr = PETSc.IS().createGeneral(rows.astype(PETSc.IntType), comm=PETSc.COMM_SELF)
+        isc = PETSc.IS().createGeneral(u.astype(PETSc.IntType), comm=PETSc.COMM_SELF)
+        (sub,) = self.Kc.createSubMatrices(isr, isc)
+        indptr, indices, vals = sub.getValuesCSR()
+        for obj in (sub, isr, isc):
+            obj.destroy()
+        M = sp.csr_matrix((vals, indices, indptr), shape=(len(rows), len(u)))
+        return sp.csr_matrix(M[:, inv])
+
     def _rows_of_K(self, rows: np.ndarray) -> sp.csr_matrix:
         """The rows ``rows`` (global, any rank's) of the assembled Kc, on every rank."""
         u, inv = np.unique(rows, return_inverse=True)
@@ -644,18 +716,52 @@ class CondensedSystem(MultiplierSystem):
         y = self._y
         y.set(0.0)
         self.inner.solve(f, y)
+        self._fill_P(y, b_lam[elim.H])
         reason = self.inner.getConvergedReason()
         its = self.inner.getIterationNumber()
         self.last_solve = {"iterations": its, "reason": int(reason),
                            "residual": float(self.inner.getResidualNorm()),
                            "rtol": float(self.inner.getTolerances()[0])}
-        cols, PKc, CuEc = self._recovery
-        yc = self._u_at(y, cols)
-        dlam = elim.recover(b_lam, b_P, PKc @ yc, CuEc @ yc)
+        dlam = self._recover(b_lam, b_P, y)
         out = x.array
         out[: self.n_u] = y.array_r
         out[self.n_u:] = dlam[self._lam_owned]
         return its, reason
+
+    def _fill_P(self, du: PETSc.Vec, b_H: np.ndarray) -> None:
+        """Δu at the rows P (this rank's) from the constraints and the rest of Δu."""
+        elim = self._elim
+        ycols, YGc = self._recovery[3:]
+        u_P = elim.displacements_P(b_H, YGc @ self._u_at(du, ycols))
+        r0 = du.getOwnershipRange()[0]
+        mp = (elim.p_rows >= r0) & (elim.p_rows < r0 + du.getLocalSize())
+        du.array[elim.p_rows[mp] - r0] = u_P[mp]
+
+    def _recover(self, b_lam: np.ndarray, b_P: np.ndarray, du: PETSc.Vec) -> np.ndarray:
+        """Δλ (n_lam) from the displacement step ``du`` (Kc's layout)."""
+        cols, PKc, CuEc = self._recovery[:3]
+        uc = self._u_at(du, cols)
+        return self._elim.recover(b_lam, b_P, PKc @ uc, CuEc @ uc)
+
+    def lift(self, du: PETSc.Vec) -> PETSc.Vec:
+        """The step [δu, δλ] over [u, λ] whose eliminated rows of J [δu, δλ] vanish: δu at
+        the rows P from the constraints, δλ from the recovery, both with a zero right-hand
+        side. Along it J acts as Kc on the rows outside P (tests).
+
+        Args:
+            du: A displacement direction in Kc's layout.
+
+        Returns:
+            A new vector in the SNES's layout.
+        """
+        n_H = len(self._elim.H)
+        du = du.copy()
+        self._fill_P(du, np.zeros(n_H))
+        dlam = self._recover(np.zeros(self.n_lam), np.zeros(n_H), du)
+        d = self.x.duplicate()
+        d.array[: self.n_u] = du.array_r
+        d.array[self.n_u:] = dlam[self._lam_owned]
+        return d
 
     def mult(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
         """y = J x, J the Jacobian over [u, λ]: K = Kc − (the condensation's entries)."""
@@ -749,8 +855,9 @@ class _CondensedKSP:
 
     def reset(self, ksp) -> None:
         s = self._system()
-        if s is not None:
+        if s is not None:   # (KSPReset drops the operators too)
             s.inner.reset()
+            s.inner.setOperators(s.Kc)
 
     def solve(self, ksp, b, x) -> None:
         s, snes = self._system(), self._snes()

@@ -61,8 +61,9 @@ _KRYLOV = {"ksp_type": "gmres", "ksp_gmres_restart": "100", "ksp_pc_side": "righ
 _AMG = {"gmres-gamg": {"pc_type": "gamg", "pc_gamg_type": "agg", "pc_gamg_agg_nsmooths": "1",
                        "pc_gamg_threshold": "0.02", "pc_gamg_reuse_interpolation": "true"},
         "gmres-hypre": {"pc_type": "hypre", "pc_hypre_type": "boomeramg",
-                        "pc_hypre_boomeramg_nodal_coarsen": "6",
-                        "pc_hypre_boomeramg_vec_interp_variant": "3"}}
+                        "pc_hypre_boomeramg_coarsen_type": "HMIS",
+                        "pc_hypre_boomeramg_interp_type": "ext+i",
+                        "pc_hypre_boomeramg_P_max": "4"}}
 
 
 def linear_solver_options(name: str, condensed: bool = False) -> dict[str, str]:

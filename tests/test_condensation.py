@@ -19,7 +19,7 @@ import scipy.sparse as sp
 from conftest import ROOT
 from fenicsx_mortar import SolverSettings, load_scene
 from fenicsx_mortar import petsc_options as po
-from fenicsx_mortar.condensation import CondensedSystem, Elimination
+from fenicsx_mortar.condensation import Elimination
 
 
 # ------------------------------------------------------------------------ the algebra
@@ -91,9 +91,16 @@ def test_elimination_solves_the_saddle_point_system(fix):
     # one; the stick node's two take both its rows
     assert len(elim.H) == 5
     assert {6, 7} <= set(elim.p_rows.tolist()) or fix == "stick"
-    rows, D = elim.delta(sp.csr_matrix(K[elim.p_rows]), (0, n_u))
+    PK = sp.csr_matrix(K[elim.p_rows])
+    coupled = elim.coupled_rows(PK)
+    rows, D = elim.delta(PK, coupled, sp.csr_matrix(K[coupled][:, elim.p_rows]),
+                         (0, n_u))
     Kc = K.copy()
     Kc[rows] += D.toarray()
+    # the columns P are gone from the other rows, the rows P are the identity
+    R = np.setdiff1d(np.arange(n_u), elim.p_rows)
+    assert np.abs(Kc[np.ix_(R, elim.p_rows)]).max() <= 1e-13 * np.abs(K).max()
+    assert np.array_equal(Kc[elim.p_rows], np.eye(n_u)[elim.p_rows])
     b_u, b_lam = b[:n_u], b[n_u:]
     b_P = b_u[elim.p_rows]
     f = b_u.copy()
@@ -101,6 +108,7 @@ def test_elimination_solves_the_saddle_point_system(fix):
     f[add_rows] += add
     f[set_rows] = values
     du = np.linalg.solve(Kc, f)
+    du[elim.p_rows] = elim.displacements_P(b_lam[elim.H], elim.YG @ du)
     dlam = elim.recover(b_lam, b_P, K[elim.p_rows] @ du, elim.Cu_E @ du)
     assert np.abs(du - exact[:n_u]).max() <= 1e-12 * np.abs(exact).max()
     assert np.abs(dlam - exact[n_u:]).max() <= 1e-12 * np.abs(exact).max()
@@ -219,3 +227,56 @@ def test_check_solver_choice():
     po.check_solver_choice(SolverSettings(linear_solver="condensed-mumps"),
                            {"pc_factor_mat_solver_type": "superlu_dist"},
                            multipliers=True, condensable=True)
+
+
+# ------------------------------------------------------------------------------ MPI
+
+MPI_SCENES = ("hertz", "block_on_slab", "half_rings")
+
+
+@pytest.fixture(scope="module")
+def mpi_runs(tmp_path_factory):
+    """The scenes of test_mpi.py (coarse Hertz, B5 pressed and pushed, frictional B3
+    pressed and turned): the saddle-point MUMPS solve serially; condensed MUMPS and
+    condensed GMRES + AMG under mpirun -n 2."""
+    import sys
+
+    import test_mpi
+    from conftest import run_python
+    base = tmp_path_factory.mktemp("condensed_mpi")
+    out = {}
+    for solver, ranks in (("mumps", 1), ("condensed-mumps", 2), ("gmres-gamg", 2)):
+        files = []
+        for name in MPI_SCENES:
+            stem, edits = test_mpi.SCENES[name]
+            text = test_mpi._edit((ROOT / f"demos/scenes/{stem}.toml").read_text(), *edits)
+            path = base / solver / f"{name}.toml"
+            path.parent.mkdir(exist_ok=True)
+            path.write_text(text + f'\n[solver]\nlinear_solver = "{solver}"\n')
+            files.append(str(path))
+        folder = base / f"{solver}_n{ranks}"
+        folder.mkdir()
+        proc = run_python([sys.executable, str(ROOT / "tests/dump_solution.py"), str(folder),
+                           *files], ranks=ranks)
+        assert proc.returncode == 0, proc.stdout[-1000:] + proc.stderr[-3000:]
+        out[solver] = folder
+    return out
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("name", MPI_SCENES)
+def test_condensed_under_mpi_equals_serial_saddle_point(name, mpi_runs):
+    """Condensed MUMPS on 2 ranks: the serial saddle-point answers to 1e-8 with the same
+    Newton iterations, cuts and stick/slip states; condensed GMRES + GAMG on 2 ranks: the
+    same answers to 1e-8 (its Newton iterations may differ: inexact steps)."""
+    import test_mpi
+    serial = test_mpi._load(mpi_runs["mumps"], name)
+    for solver in ("condensed-mumps", "gmres-gamg"):
+        parallel = test_mpi._load(mpi_runs[solver], name)
+        assert parallel[1]["ranks"] == 2
+        diff = test_mpi.Diff()
+        test_mpi.compare(serial, parallel, diff)
+        if solver == "gmres-gamg":
+            diff.mismatch = [m for m in diff.mismatch if "newton_iterations" not in m]
+        assert not diff.mismatch, f"{solver}: " + "; ".join(diff.mismatch[:8])
+        assert max(diff.worst.values()) <= 1e-8, (solver, diff.worst)
