@@ -44,7 +44,7 @@ TRUNCATION = np.finfo(float).eps / 16
 #: the Neumann series is used while ‖D⁻¹E‖∞ is below this; above, W is the dense inverse
 NEUMANN_LIMIT = 0.5
 #: band of slave nodes (along the chain) whose couplings are preallocated around a node
-PREDICTED_BAND = 2
+PREDICTED_BAND = 4
 
 
 class CondensationError(RuntimeError):
@@ -469,13 +469,16 @@ class CondensedSystem(MultiplierSystem):
 
     # -- the condensed matrix's pattern ------------------------------------------------
     def _predicted(self, indptr, indices, r0):
-        """Owned (row, column) slots the condensation will likely fill: for every slave
-        node that has master candidates, the dofs its force reaches (its couplings) times
-        the rows of K of the slave nodes within PREDICTED_BAND along the chain (their bulk
-        stencils and couplings)."""
+        """Owned (row, column) slots the condensation will likely fill, and the rows it can
+        touch at all (``self._watch``, whose pattern is kept for the checks). For every
+        slave node j: its reach — the dofs its force and constraint depend on (couplings)
+        and its rows' stencil in K. Eliminating the multipliers adds the rows of K of the
+        nodes within PREDICTED_BAND along the chain to the rows j's force reaches;
+        eliminating the displacements P adds the constraints' columns to the rows of the
+        stencil: both within reach(j) × ∪ reach(k), k within the band."""
         comm = self.comm
         n_own = len(indptr) - 1
-        out_r, out_c = [], []
+        out_r, out_c, watch = [], [], [self._watch]
         for p in self._lam_pairs:
             s = p.slave
             dofs = s.dofs.astype(np.int64)
@@ -487,21 +490,23 @@ class CondensedSystem(MultiplierSystem):
             merged: dict[int, np.ndarray] = {}
             for part in comm.allgather(pats):
                 merged.update(part)
-            reach = [np.asarray(c, dtype=np.int64) for c in p.couplings_by_node()]
+            couplings = [np.asarray(c, dtype=np.int64) for c in p.couplings_by_node()]
+            reach = [np.union1d(couplings[j], merged.get(j, np.zeros(0, np.int64)))
+                     for j in range(s.n)]
+            watch += reach
             nb = s.neighbours
             for j in range(s.n):
-                if len(reach[j]) <= 4:      # no master candidates: never active
+                if len(couplings[j]) <= 4:      # no master candidates: never active
                     continue
                 band, front = {j}, {j}
                 for _ in range(PREDICTED_BAND):
                     front = {int(k) for f in front for k in nb[f] if k >= 0} - band
                     band |= front
-                cols = np.unique(np.concatenate(
-                    [np.concatenate([merged.get(k, np.zeros(0, np.int64)), reach[k]])
-                     for k in band]))
+                cols = np.unique(np.concatenate([reach[k] for k in band]))
                 rows = reach[j][(reach[j] >= r0) & (reach[j] < r0 + n_own)]
                 out_r.append(np.repeat(rows, len(cols)))
                 out_c.append(np.tile(cols, len(rows)))
+        self._watch = np.unique(np.concatenate(watch)).astype(np.int64)
         if not out_r:
             return np.zeros(0, np.int64), np.zeros(0, np.int64)
         return np.concatenate(out_r), np.concatenate(out_c)
@@ -566,11 +571,13 @@ class CondensedSystem(MultiplierSystem):
         for attempt in range(2):
             dx.assemble_jacobian(self.Kc, self.jacobian_form, self.bcs,
                                  extra=lambda K: self._insert(K, *uu))
+            diag = self.Kc.getDiagonal()
             with timings("contact"), timings("contact_condensation"):
                 PK = self._rows_of_K(elim.p_rows)
                 coupled = elim.coupled_rows(PK)
                 K_RP = self._block_of_K(coupled, elim.p_rows)
                 rows, D = elim.delta(PK, coupled, K_RP, (r0, r1))
+                D = _below_round_off(D, rows, diag, r0)
                 coo = D.tocoo()
                 grow = rows[coo.row], coo.col
                 missing = self._missing(*grow)
@@ -803,8 +810,28 @@ class CondensedSystem(MultiplierSystem):
         self.inner.setOptionsPrefix(prefix)
         applied.set_from_options(snes, extra=[self.inner])
         # a Krylov inner solve without a tolerance of the user's: inexact Newton
-        self.forcing = (Forcing() if self.inner.getType() != PETSc.KSP.Type.PREONLY
+        self.forcing = (Forcing(applied.settings.atol)
+                        if self.inner.getType() != PETSc.KSP.Type.PREONLY
                         and "ksp_rtol" not in applied.options else None)
+
+
+def _below_round_off(D: sp.csr_matrix, rows: np.ndarray, diag: PETSc.Vec,
+                     r0: int) -> sp.csr_matrix:
+    """D without the entries below TRUNCATION of their row's scale (the larger of K's
+    diagonal entry there and D's largest entry in the row): added to that row they change
+    nothing beyond its round-off, and they would only widen the pattern (the truncated
+    inverses' tails, ~1e-16 of the row, reach several nodes further along the chain)."""
+    D = sp.csr_matrix(D)
+    scale = np.abs(diag.array_r[rows - r0])
+    diag.destroy()
+    n = np.diff(D.indptr)
+    big = np.zeros(len(rows))
+    has = n > 0
+    big[has] = np.maximum.reduceat(np.abs(D.data), D.indptr[:-1][has])
+    scale = np.maximum(scale, big)
+    D.data[np.abs(D.data) <= TRUNCATION * np.repeat(scale, n)] = 0.0
+    D.eliminate_zeros()
+    return D
 
 
 def _compress(A: sp.csr_matrix, cols: np.ndarray) -> sp.csr_matrix:
@@ -817,14 +844,22 @@ class Forcing:
     """Eisenstat–Walker forcing terms (their choice 2, γ = 0.9, α = 2, with the usual
     safeguard): the inner solve's relative tolerance from the ratio of the last two
     residual norms, so that early Newton steps are solved loosely and the last ones
-    tightly (quadratic convergence kept)."""
+    tightly (quadratic convergence kept), at most ETA_MAX; never tighter than needed to
+    reach a tenth of the Newton solve's ``atol`` from the current residual.
+
+    Args:
+        atol: The Newton solve's absolute tolerance (SolverSettings.atol).
+    """
 
     gamma, alpha, eta0, eta_max, eta_min = 0.9, 2.0, 1e-2, 1e-2, 1e-12
 
-    def __init__(self):
+    def __init__(self, atol: float = 0.0):
+        self.atol = atol
         self._last: tuple[float, float] | None = None
 
     def rtol(self, fnorm: float, iteration: int) -> float:
+        """The relative tolerance of Newton iteration ``iteration``'s linear solve, whose
+        right-hand side (the residual) has the norm ``fnorm``."""
         if iteration == 0 or self._last is None:
             eta = self.eta0
         else:
@@ -833,7 +868,8 @@ class Forcing:
             safe = self.gamma * eta_prev ** self.alpha
             if safe > 0.1:
                 eta = max(eta, safe)
-        eta = min(max(eta, self.eta_min), self.eta_max)
+        floor = 0.1 * self.atol / fnorm if fnorm > 0 else self.eta_max
+        eta = min(max(eta, self.eta_min, floor), self.eta_max)
         self._last = (fnorm, eta)
         return eta
 

@@ -106,6 +106,7 @@ class Applied:
     def __init__(self, prefix: str, settings: SolverSettings,
                  user: Mapping[str, str], condensed: bool = False):
         self.prefix = prefix
+        self.settings = settings
         opts = PETSc.Options()
         own = {k: v for k, v in defaults(settings, condensed).items()
                if not opts.hasName(prefix + k)}
