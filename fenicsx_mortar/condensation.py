@@ -25,6 +25,7 @@ anyway); each rank inserts the condensation's entries of the rows it owns.
 """
 from __future__ import annotations
 
+import math
 import weakref
 from typing import Sequence
 
@@ -465,6 +466,8 @@ class CondensedSystem(MultiplierSystem):
         self._f, self._y = self.Kc.createVecs()
         #: Eisenstat–Walker forcing for a Krylov inner solve (set by configure)
         self.forcing: Forcing | None = None
+        #: when a Krylov inner solve builds its preconditioner afresh
+        self.lag = Lag()
         self.last_solve = {"iterations": 0, "reason": 0, "residual": 0.0, "rtol": 0.0}
 
     # -- the condensed matrix's pattern ------------------------------------------------
@@ -544,6 +547,7 @@ class CondensedSystem(MultiplierSystem):
         J = self._build(indptr, indices.astype(np.int64), r0, rows, cols)
         self.Kc.destroy()
         self.Kc = J
+        self.lag.refresh()
         self.inner.setOperators(J)
         self._f, self._y = J.createVecs()
 
@@ -717,15 +721,28 @@ class CondensedSystem(MultiplierSystem):
         add_rows, add, set_rows, values = elim.rhs_update(b_P, b_lam[elim.H], (r0, r1))
         fa[add_rows - r0] += add                # B_rows are unique
         fa[set_rows - r0] = values
+        lagged = False
         if self.forcing is not None:
             rtol = self.forcing.rtol(b.norm(), fnorm_iteration)
             self.inner.setTolerances(rtol=rtol)
+            lagged = self.lag.use()
+            self.inner.getPC().setReusePreconditioner(lagged)
         y = self._y
         y.set(0.0)
         self.inner.solve(f, y)
-        self._fill_P(y, b_lam[elim.H])
         reason = self.inner.getConvergedReason()
         its = self.inner.getIterationNumber()
+        if lagged and reason < 0:   # the lagged preconditioner failed: a fresh one
+            self.inner.getPC().setReusePreconditioner(False)
+            y.set(0.0)
+            self.inner.solve(f, y)
+            reason = self.inner.getConvergedReason()
+            its += self.inner.getIterationNumber()
+            lagged = False
+        if self.forcing is not None:
+            self.lag.record(self.inner.getIterationNumber(), lagged,
+                            self.inner.getResidualNorm() / max(f.norm(), 1e-300))
+        self._fill_P(y, b_lam[elim.H])
         self.last_solve = {"iterations": its, "reason": int(reason),
                            "residual": float(self.inner.getResidualNorm()),
                            "rtol": float(self.inner.getTolerances()[0])}
@@ -872,6 +889,34 @@ class Forcing:
         eta = min(max(eta, self.eta_min, floor), self.eta_max)
         self._last = (fnorm, eta)
         return eta
+
+
+class Lag:
+    """A lagged preconditioner: the AMG hierarchy of one Newton iteration serves the next
+    ones (its set-up costs as much as 20 Krylov iterations at 2M dofs, and the condensed
+    matrix changes little from iterate to iterate), rebuilt once the Krylov iterations per
+    decade of residual reduction exceed LIMIT times those right after the last build, and
+    at once when a solve with the lagged one fails."""
+
+    LIMIT = 1.5
+
+    def __init__(self):
+        self._ref: float | None = None
+        self._stale = True
+
+    def use(self) -> bool:
+        """Whether the next solve reuses the preconditioner."""
+        return not self._stale
+
+    def refresh(self) -> None:
+        self._stale = True
+
+    def record(self, iterations: int, lagged: bool, reduction: float) -> None:
+        rate = iterations / max(-math.log10(max(reduction, 1e-300)), 1.0)
+        if not lagged:
+            self._ref, self._stale = rate, False
+        elif self._ref is not None and rate > self.LIMIT * self._ref + 1.0:
+            self._stale = True
 
 
 class _CondensedKSP:

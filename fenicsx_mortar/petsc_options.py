@@ -20,9 +20,10 @@ from petsc4py import PETSc
 
 from .settings import SolverSettings
 
-#: options read at a factorization, not at set-up: kept in the database while the solver
-#: lives
-FACTOR_OPTIONS = ("mat_mumps_",)
+#: options read at a factorization or a preconditioner's set-up, not at the solver's: kept
+#: in the database while the solver lives (a multigrid's level solvers are made and read
+#: their options at its first set-up)
+FACTOR_OPTIONS = ("mat_mumps_", "mg_levels_", "mg_coarse_")
 #: which live solver set a kept option last: two solvers under one prefix share the keys,
 #: and a dead one must not take the live one's options with it
 _OWNER: dict[str, object] = {}
@@ -55,11 +56,11 @@ def line_search_type(kind: str) -> str:
 
 #: GMRES on the condensed contact Jacobian (nonsymmetric): right preconditioning, so
 #: that the tolerance (Eisenstat–Walker's, condensation.Forcing) bounds the true residual
-_KRYLOV = {"ksp_type": "gmres", "ksp_gmres_restart": "100", "ksp_pc_side": "right",
+_KRYLOV = {"ksp_type": "gmres", "ksp_gmres_restart": "50", "ksp_pc_side": "right",
            "ksp_norm_type": "unpreconditioned", "ksp_max_it": "1000"}
 #: the condensed path's AMG settings (docs/performance.md: chosen by measurement)
 _AMG = {"gmres-gamg": {"pc_type": "gamg", "pc_gamg_type": "agg", "pc_gamg_agg_nsmooths": "1",
-                       "pc_gamg_threshold": "0.02", "pc_gamg_reuse_interpolation": "true"},
+                       "pc_gamg_threshold": "0.02"},
         "gmres-hypre": {"pc_type": "hypre", "pc_hypre_type": "boomeramg",
                         "pc_hypre_boomeramg_coarsen_type": "HMIS",
                         "pc_hypre_boomeramg_interp_type": "ext+i",

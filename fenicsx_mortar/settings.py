@@ -21,7 +21,7 @@ LINEAR_SOLVERS = ("auto", "mumps", "superlu_dist", "condensed-mumps", "gmres-gam
 CONDENSED_SOLVERS = ("condensed-mumps", "gmres-gamg", "gmres-hypre")
 #: "auto": MUMPS below this many displacement dofs, AUTO_ITERATIVE from it on
 AUTO_ITERATIVE_DOFS = 200_000
-AUTO_ITERATIVE = "gmres-hypre"
+AUTO_ITERATIVE = "gmres-gamg"
 
 
 def resolve_linear_solver(name: str, n_dofs: int, multipliers: bool,
