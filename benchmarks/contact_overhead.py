@@ -2,8 +2,9 @@
 
 What it measures
 ----------------
-1. **Hertz (B2) at h_c = a/20** (a = 0.04814, mesh parameter ``h_contact = a/20``), mortar +
-   ALM: the scene ``demos/scenes/hertz.toml`` at that size. By default the state is the disk
+1. **Hertz (B2) at h_c = a/20** (a = 0.04814, mesh parameter ``h_contact = a/20``), the
+   scene ``demos/scenes/hertz.toml`` at that size with its enforcement (Lagrange multipliers,
+   dual basis, the package's default). By default the state is the disk
    pressed rigidly into the block by δ = a²/(2R), so that its arc overlaps the block over
    about the Hertz width (the converged active set's size; ``--solve-hertz`` solves the
    scene instead, which takes minutes, and prints the run's own phase times). In that
@@ -51,6 +52,12 @@ Serial only.
 Targets (issue 7): contact overhead <= 30 % of bulk assembly per Newton iteration on Hertz
 at a/20 and on the half-rings; fitted exponent <= 1.15. The script only prints; it asserts
 nothing about time.
+
+Measured (issue 31, 2026-12-04, ``--clock cpu``, 2-core machine at load average 5–6): Hertz
+a/20 contact 7.9–8.3 ms against bulk 21.1–21.3 ms (37.5–38.7 %) before; after the kernel's
+deferred Hessians and closed-form polyline (``contact/mortar.py``) 5.8–6.3 ms against
+20.8–21.4 ms (26.9–29.5 %): curve+proj+mortar 3.2–3.3 → 1.0–1.2 ms, the rest (nodal sums,
+enforcement, sparse R/K, now with the pair-weighted Hessians of the contact nodes) 4.0–4.5 ms.
 """
 from __future__ import annotations
 
@@ -68,17 +75,17 @@ sys.path.insert(0, str(ROOT))
 from petsc4py import PETSc  # noqa: E402
 
 from fenicsx_mortar import _dolfinx as dx  # noqa: E402
-from fenicsx_mortar.bulk import build_bulk  # noqa: E402
+from fenicsx_mortar.scene.bulk import build_bulk  # noqa: E402
 from fenicsx_mortar.contact import assembly, mortar  # noqa: E402
 from fenicsx_mortar.contact.curves import Polyline  # noqa: E402
 from fenicsx_mortar.contact.registry import ENFORCEMENTS  # noqa: E402
 from fenicsx_mortar.contact.state import ContactState  # noqa: E402
 from fenicsx_mortar.contact.kernel import nodal_sum  # noqa: E402
 from fenicsx_mortar.contact.search import candidate_pairs  # noqa: E402
-from fenicsx_mortar.meshing import build_domain  # noqa: E402
+from fenicsx_mortar.scene.meshing import build_domain  # noqa: E402
 from fenicsx_mortar.scene import Scene, from_dict, load_scene  # noqa: E402
 from fenicsx_mortar.problem import ContactProblem  # noqa: E402
-from fenicsx_mortar.run import scene_pairs  # noqa: E402
+from fenicsx_mortar.scene.runner import scene_pairs  # noqa: E402
 from fenicsx_mortar.newton import NewtonSolver  # noqa: E402
 from fenicsx_mortar.stepping import LoadStepper  # noqa: E402
 from fenicsx_mortar.timings import Timings  # noqa: E402
@@ -96,7 +103,7 @@ CONTACT_PHASES = ("contact", "contact_search", "contact_kernel", "contact_insert
 
 
 def build(scene: Scene):
-    """mesh → bulk → contact → Newton solver, as fenicsx_mortar.run.solve wires them."""
+    """mesh → bulk → contact → Newton solver, as fenicsx_mortar.scene.runner.solve wires them."""
     scene.validate()
     dom = build_domain(scene)
     bulk = build_bulk(scene, dom)

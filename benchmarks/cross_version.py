@@ -1,24 +1,28 @@
-r"""The same numbers on DOLFINx 0.5.2 (Debian 12) and 0.9 (Debian 13).
+r"""The same numbers on DOLFINx 0.5.2 (Debian 12), 0.9 (Debian 13) and 0.11 (PyPI).
 
 The contact patch test (B1), Hertz at h_c = a/10 (B2), the frictional block on the slab
 (B5, μ = 0.3) and the half-rings with Coulomb friction μ = 0.3 (B3, the full path) are
-solved on both versions and every converged step compared: nodal pressures, reactions,
+solved on every version and every converged step compared with the first's: nodal
+pressures, reactions,
 contact forces, the other interface arrays to ``--rtol`` (1e-8), Newton iterations, cuts and
 stick/slip statuses exactly (benchmarks/fingerprint.py ``compare``).
 
-Both versions read the same mesh files, written once by ``scenes``: the generators' meshes
-are not the same on both systems. gmsh 4.8 (Debian 12) and 4.13 (Debian 13) mesh the Hertz
+All versions read the same mesh files, written once by ``scenes``: the generators' meshes
+are not the same on all systems. gmsh 4.8 (Debian 12) and 4.13 (Debian 13) mesh the Hertz
 disk's far field differently (176 of 5708 nodes moved, by up to 1.2e-4; the contact zone is
 the same), which alone makes the Hertz pressures differ by 1.8e-8 relative; the structured
 meshes of B1, B3, B5 agree to 5e-15. .ci/run does::
 
     python benchmarks/cross_version.py scenes DIR             # four scenes and their meshes
-    python benchmarks/fingerprint.py run A.json DIR/*.toml    # on the host
-    scripts/debian_root.sh -- .venv/bin/python benchmarks/fingerprint.py run B.json DIR/*.toml
-    python benchmarks/cross_version.py compare A.json B.json  # verdict, largest differences
+    python benchmarks/cross_version.py run A.json DIR/*.toml  # on the host (0.5.2)
+    scripts/debian_root.sh -- .venv/bin/python benchmarks/cross_version.py run B.json ...
+    scripts/debian_root.sh --venv pip -- .venv/bin/python benchmarks/cross_version.py run C.json ...
+    python benchmarks/cross_version.py compare A.json B.json C.json
 
-``compare`` runs fingerprint's comparison (exit 1 if anything differs) and then prints the
-largest relative difference of the nodal pressures and of the reactions over the scenes.
+``run`` is fingerprint's ``run`` with the DOLFINx, PETSc and MPI versions added to the file.
+``compare`` runs fingerprint's comparison of the first file with each other one (exit 1 if
+anything differs) and then prints, per scene and version, the largest relative difference
+of the nodal pressures and of the reactions to the first file's.
 """
 from __future__ import annotations
 
@@ -72,7 +76,7 @@ def mesh_to_file(text: str, msh: Path) -> str:
     import tomllib
 
     import gmsh
-    from fenicsx_mortar.meshing import load_generator
+    from fenicsx_mortar.scene.meshing import load_generator
     mesh = tomllib.loads(text)["mesh"]
     gmsh.initialize()
     try:
@@ -119,16 +123,52 @@ def largest(a: dict, b: dict, group: str) -> tuple[float, str]:
     return worst
 
 
-def compare(file_a: Path, file_b: Path, rtol: float) -> int:
-    status = fingerprint.compare(file_a, file_b, rtol)
-    A, B = (json.loads(Path(f).read_text())["scenes"] for f in (file_a, file_b))
-    overall = {"pressure": (0.0, ""), "reactions": (0.0, "")}
-    for name in A.keys() & B.keys():
-        for group in overall:
-            rel, where = largest(A[name], B[name], group)
-            overall[group] = max(overall[group], (rel, f"{name}: {where}"))
-    print("largest relative difference over the scenes: " + "; ".join(
-        f"{g} {rel:.2g} ({where})" for g, (rel, where) in overall.items()))
+def run(out: Path, scenes: list[str]) -> None:
+    """fingerprint's ``run``, then the versions it ran on into the file's meta."""
+    from mpi4py import MPI
+    from fenicsx_mortar import _dolfinx as dx
+    fingerprint.run(out, scenes, None)
+    if MPI.COMM_WORLD.rank == 0:
+        from petsc4py import PETSc
+        data = json.loads(out.read_text())
+        data["meta"].update(dolfinx=dx.VERSION, petsc=".".join(map(str, PETSc.Sys.getVersion())),
+                            mpi=MPI.Get_library_version().splitlines()[0].strip())
+        out.write_text(json.dumps(data, indent=0) + "\n")
+
+
+def _label(meta: dict, path: Path) -> str:
+    return f"DOLFINx {meta['dolfinx']}" if "dolfinx" in meta else path.name
+
+
+def compare(files: list[Path], rtol: float) -> int:
+    """Each file after the first against the first (fingerprint's verdict), then a table of
+    the largest relative differences; exit status 1 if any comparison failed."""
+    data = [json.loads(Path(f).read_text()) for f in files]
+    ref, ref_label = data[0]["scenes"], _label(data[0]["meta"], files[0])
+    status = 0
+    for f in files[1:]:
+        status |= fingerprint.compare(files[0], f, rtol)
+    labels = [_label(d["meta"], f) for d, f in zip(data[1:], files[1:])]
+    print(f"\nlargest relative difference to {ref_label} (nodal pressures / reactions):")
+    print("| scene | " + " | ".join(labels) + " |")
+    print("|---|" + "---|" * len(labels))
+    overall = [{"pressure": (0.0, ""), "reactions": (0.0, "")} for _ in labels]
+    for name in ref:
+        cells = []
+        for d, worst in zip(data[1:], overall):
+            other = d["scenes"].get(name)
+            if other is None:
+                cells.append("missing")
+                continue
+            rel = {}
+            for group in worst:
+                rel[group], where = largest(ref[name], other, group)
+                worst[group] = max(worst[group], (rel[group], f"{name}: {where}"))
+            cells.append(f"{rel['pressure']:.1e} / {rel['reactions']:.1e}")
+        print(f"| {name} | " + " | ".join(cells) + " |")
+    for label, worst in zip(labels, overall):
+        print(f"{label} against {ref_label}: largest relative difference over the scenes: "
+              + "; ".join(f"{g} {rel:.2g} ({where})" for g, (rel, where) in worst.items()))
     return status
 
 
@@ -137,15 +177,22 @@ def main() -> int:
     sub = ap.add_subparsers(dest="cmd", required=True)
     s = sub.add_parser("scenes", help="write the scene files, print their paths")
     s.add_argument("folder", type=Path)
-    c = sub.add_parser("compare", help="compare the fingerprints of two versions")
-    c.add_argument("a", type=Path)
-    c.add_argument("b", type=Path)
+    r = sub.add_parser("run", help="fingerprint the scenes on this version")
+    r.add_argument("out", type=Path)
+    r.add_argument("scenes", nargs="+")
+    c = sub.add_parser("compare", help="compare the fingerprints of versions with the first's")
+    c.add_argument("files", type=Path, nargs="+")
     c.add_argument("--rtol", type=float, default=1e-8)
     args = ap.parse_args()
     if args.cmd == "scenes":
         print(" ".join(str(p) for p in write_scenes(args.folder)))
         return 0
-    return compare(args.a, args.b, args.rtol)
+    if args.cmd == "run":
+        run(args.out, args.scenes)
+        return 0
+    if len(args.files) < 2:
+        ap.error("compare: give two fingerprint files or more")
+    return compare(args.files, args.rtol)
 
 
 if __name__ == "__main__":

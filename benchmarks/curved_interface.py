@@ -4,6 +4,7 @@ under mesh refinement (docs/curved_interface.md).
     .venv/bin/python benchmarks/curved_interface.py                  # levels 0-4, 2 workers
     .venv/bin/python benchmarks/curved_interface.py --levels 0,1,2,3 --workers 1
     .venv/bin/python benchmarks/curved_interface.py --redraw         # doc + plot from saved runs
+    .venv/bin/python benchmarks/curved_interface.py --arcs 24,17 --levels 0,1   # other arcs
 
 Problem (scene ``demos/scenes/shrink_fit.toml``, mesh ``meshes/shrink_fit.py``): quarter model
 of an inner ring a = 0.5 ≤ r ≤ b + δ = 1.01 shrunk into an outer ring b = 1 ≤ r ≤ c = 1.5,
@@ -147,9 +148,12 @@ def available(variant: Variant) -> bool:
     return refusal(variant) is None
 
 
-def mesh_params(level: int, matching: bool = False) -> dict:
-    """The generator parameters of a level: every element count × 2^level."""
+def mesh_params(level: int, matching: bool = False, arcs: tuple | None = None) -> dict:
+    """The generator parameters of a level: every element count × 2^level (``arcs``: the
+    level-0 slave and master segment counts instead of the scene's)."""
     p, _, _ = _base_scene_params()
+    if arcs:
+        p = dict(p, inner_nc=int(arcs[0]), outer_nc=int(arcs[1]))
     k = 2**level
     p = dict(p, **{n: p[n] * k for n in ("inner_nc", "outer_nc", "inner_nr", "outer_nr")})
     if matching:
@@ -157,11 +161,11 @@ def mesh_params(level: int, matching: bool = False) -> dict:
     return p
 
 
-def make_scene(level: int, material: str, variant: Variant):
+def make_scene(level: int, material: str, variant: Variant, arcs: tuple | None = None):
     """The scene of one run (no output files)."""
     from fenicsx_mortar import load_scene
     scene = load_scene(SCENE)
-    scene.mesh.params = mesh_params(level, variant.matching)
+    scene.mesh.params = mesh_params(level, variant.matching, arcs)
     for body in scene.bodies:
         body.material.model = material
     contact = scene.contacts[0]
@@ -218,7 +222,7 @@ def run_case(job: dict) -> dict:
     """Solve one (level, material, variant); the raw record (nodal values and forces)."""
     from fenicsx_mortar import SceneError, solve
     variant = Variant(*job["variant"])
-    scene = make_scene(job["level"], job["material"], variant)
+    scene = make_scene(job["level"], job["material"], variant, job.get("arcs"))
     t0 = time.perf_counter()
     try:
         result = solve(scene, log=lambda s: print(f"[{job['key']}] {s}", flush=True))
@@ -709,7 +713,7 @@ def plan(levels: list[int]) -> list[tuple[int, str, Variant]]:
     return todo
 
 
-def run_all(levels: list[int], workers: int) -> dict:
+def run_all(levels: list[int], workers: int, arcs: tuple | None = None) -> dict:
     OUT.mkdir(parents=True, exist_ok=True)
     runs: dict[str, dict] = {}
 
@@ -726,8 +730,9 @@ def run_all(levels: list[int], workers: int) -> dict:
                  "NOT CONVERGED: " + rec["message"][:200])
         print(f"{rec['key']:45s} {rec['wall']:6.1f} s  {state}", flush=True)
 
-    every = [pool.Job(dict(key=_key(k, m, v), level=k, material=m, variant=tuple(v)),
-                      wall_limit=WALL_LIMIT, tag=_key(k, m, v)) for k, m, v in plan(levels)]
+    every = [pool.Job(dict(key=_key(k, m, v), level=k, material=m, variant=tuple(v),
+                           arcs=arcs), wall_limit=WALL_LIMIT, tag=_key(k, m, v))
+             for k, m, v in plan(levels)]
     first = [j for j in every if j.payload["level"] == levels[0]]
 
     def jobs():
@@ -753,8 +758,26 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2, help="worker processes")
     ap.add_argument("--redraw", action="store_true", help="no solve: doc and plot from "
                     f"{RUNS.relative_to(ROOT)}")
+    ap.add_argument("--arcs", default=None, help="SLAVE,MASTER: the level-0 arc segment counts "
+                    "instead of the scene's (e.g. 24,17, issue 31); prints max |e| per run, "
+                    "writes no doc")
     args = ap.parse_args()
     wall = None
+    if args.arcs:
+        arcs = tuple(int(x) for x in args.arcs.split(","))
+        levels = sorted(int(x) for x in args.levels.split(","))
+        runs = run_all(levels, max(1, args.workers), arcs)
+        (OUT / f"runs_{arcs[0]}x{arcs[1]}.json").write_text(json.dumps(runs) + "\n")
+        print(f"\nslave x master = {arcs[0]} x {arcs[1]} segments on level 0: max |e| "
+              "(ends, interior spread)")
+        for v in VARIANTS + (CONTROL,):
+            for m in MATERIALS:
+                row = [measures(runs[_key(k, m, v)]) if _key(k, m, v) in runs else None
+                       for k in levels]
+                print(f"  {v.name:40s} {m:9s} " + "  ".join(
+                    f"L{k}: {_pct(r['max'])} ({_pct(r['ends'])}, {_pct(r['spread'])})"
+                    if r else f"L{k}: —" for k, r in zip(levels, row)))
+        return
     if args.redraw:
         saved = json.loads(RUNS.read_text())
         levels, runs, wall = saved["levels"], saved["runs"], saved.get("wall")

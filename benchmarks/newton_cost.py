@@ -35,7 +35,7 @@ sys.path.insert(0, str(ROOT))
 from benchmarks.analytics import HERTZ_A, HERTZ_P0, pressure_metrics  # noqa: E402
 from benchmarks.pool import blas_in_use  # noqa: E402
 from fenicsx_mortar import Friction, load_scene, solve  # noqa: E402
-from fenicsx_mortar import run as fm_run  # noqa: E402
+from fenicsx_mortar.scene import runner as fm_run  # noqa: E402
 
 SCENES = ROOT / "demos" / "scenes"
 #: (label, enforcement type, basis, ε factor × E/h or None, (atol, rtol) or None: the

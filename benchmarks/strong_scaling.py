@@ -38,8 +38,10 @@ How to run
 
 Part 1 takes ~10-15 minutes per N on this 2-core machine (meshing alone ~2 min). The
 workers' JSON files stay in ``--work`` (default results/strong_scaling); ``--report`` prints
-the table again from them without running anything. mpirun is called with
-``--oversubscribe`` and the OpenMPI root-user variables set (harmless when not root).
+the table again from them without running anything. The ranks are started by the MPI
+launcher of this Python (fenicsx_mortar/mpi_launch.py): Open MPI's ``mpirun -n N
+--oversubscribe`` with its root-user variables (harmless when not root), or the venv's
+``mpiexec -n N`` with PyPI's MPICH.
 """
 from __future__ import annotations
 
@@ -54,7 +56,9 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-MPI_ENV = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1"}
+if __package__ in (None, ""):
+    sys.path.insert(0, str(ROOT))
+from fenicsx_mortar.mpi_launch import mpi_command, mpi_env  # noqa: E402
 
 PHASES = [("mesh", "mesh (gmsh, rank 0) + distribution"), ("jit", "forms, JIT, contact set-up"),
           ("bulk_assembly", "bulk assembly"), ("contact", "contact"),
@@ -165,12 +169,11 @@ def worker_gather(sizes: list[int], reps: int, out_json: str) -> None:
 
 
 def mpirun(n: int, args: list[str], log_path: Path) -> None:
-    cmd = ([sys.executable] if n == 1 else
-           ["mpirun", "-n", str(n), "--oversubscribe", sys.executable]) + args
+    cmd = ([] if n == 1 else mpi_command(n)) + [sys.executable, *args]
     print("  $", " ".join(cmd), flush=True)
     with open(log_path, "w") as log:
         proc = subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT, cwd=ROOT,
-                              env={**os.environ, **MPI_ENV})
+                              env=mpi_env())
     if proc.returncode != 0:
         raise SystemExit(f"run failed (exit {proc.returncode}), see {log_path}")
 

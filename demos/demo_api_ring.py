@@ -143,9 +143,9 @@ last = history[-1]
 scale = abs(last["top"][1])
 if comm.rank == 0:
     for h in history:
-        print(f"t = {h['t']:.2f}: squeeze force {h['top'][1]:+.5f}, bottom reaction "
-              f"{h['bottom'][1]:+.5f}, contact forces on the ring {h['lower'][1]:+.5f} / "
-              f"{h['upper'][1]:+.5f}")
+        print(f"t = {h['t']:.2f}: squeeze force {h['top'][1]:+.10f}, bottom reaction "
+              f"{h['bottom'][1]:+.10f}, contact forces on the ring {h['lower'][1]:+.10f} / "
+              f"{h['upper'][1]:+.10f}")
     print(f"force balance |R_bottom + R_top| / |R_top| = "
           f"{np.abs(last['bottom'] + last['top']).max() / scale:.1e}")
     print(f"upper plate |R_top - F_upper| / |R_top| = "

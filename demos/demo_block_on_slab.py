@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from fenicsx_mortar import Traction, load_scene, solve
-from fenicsx_mortar.pictures import frames_png, snapshot
+from fenicsx_mortar.io.pictures import frames_png, snapshot
 
 MU, N_PRESS = 0.3, 1.0
 OUT = Path(__file__).resolve().parents[1] / "results" / "demo_block_on_slab"

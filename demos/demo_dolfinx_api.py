@@ -7,10 +7,10 @@ compressible Neo-Hooke. Element size h_c = a/10 near the contact point. The disk
 vertically by contact alone: its arc is the slave surface, the block's top the master.
 
 What the script does, as a DOLFINx user would: the gmsh model (the package's B2 generator)
-becomes a mesh with cell and facet tags through gmshio; the Neo-Hooke residual, the
-traction and the Dirichlet conditions are the script's own UFL and DOLFINx objects; the
-contact is a ``ContactPair`` from the facet tags, and ``ContactProblem`` solves everything
-with PETSc SNES, in two load steps.
+becomes a mesh with cell and facet tags through gmshio (0.10+: ``dolfinx.io.gmsh``); the
+Neo-Hooke residual, the traction and the Dirichlet conditions are the script's own UFL and
+DOLFINx objects; the contact is a ``ContactPair`` from the facet tags, and
+``ContactProblem`` solves everything with PETSc SNES, in two load steps.
 
 Analytic (small strain): 1/E* = 2(1 − ν²)/E, a = 2√(F R/(π E*)), p₀ = 2F/(π a),
 p(x) = p₀ √(1 − x²/a²).
@@ -18,13 +18,13 @@ p(x) = p₀ √(1 − x²/a²).
 Expected result: p_max/p₀ − 1 within 2 %, a relative L2 pressure error over [−a, a] of a
 few per cent, and the contact force on the disk equal to the applied force.
 """
+from mpi4py import MPI  # first: PyPI's DOLFINx wheel loads MPICH through mpi4py
+
 import gmsh
 import numpy as np
 import ufl
 from dolfinx import fem
 from dolfinx import mesh as dmesh
-from dolfinx.io import gmshio
-from mpi4py import MPI
 from petsc4py import PETSc
 from scipy.integrate import trapezoid
 
@@ -43,6 +43,10 @@ gmsh.initialize()
 gmsh.option.setNumber("General.Terminal", 0)
 if comm.rank == 0:
     hertz.build(gmsh.model, h_contact=a / 10, h_far=0.1)
+try:                                   # DOLFINx >= 0.10: io.gmsh, returns MeshData
+    from dolfinx.io import gmsh as gmshio
+except ImportError:                    # DOLFINx 0.5-0.9
+    from dolfinx.io import gmshio
 msh, cell_tags, facet_tags = gmshio.model_to_mesh(gmsh.model, comm, 0, gdim=2)[:3]
 gmsh.finalize()
 

@@ -22,7 +22,7 @@ origin and the moment is carried by the tangential tractions.
 Writes ``results/demo_half_rings[_full]/``: ``reactions.csv``/``.png`` (hub reactions and
 moment against the load parameter), ``deformed.png`` (meshes coloured by contact pressure at
 chosen steps) and ``master_end.png`` (zoom on the master's end), ``snapshots.npz`` (every
-step's nodal state, for ``fenicsx_mortar.pictures``), the package's per-step interface CSVs
+step's nodal state, for ``fenicsx_mortar.io.pictures``), the package's per-step interface CSVs
 in ``run/interface/`` and, with ``--full``, ``load_path.gif``.
 """
 import argparse
@@ -33,7 +33,7 @@ import numpy as np
 
 from fenicsx_mortar import Friction, load_scene, solve
 from fenicsx_mortar import _dolfinx as dx
-from fenicsx_mortar.pictures import (Snapshot, animation_gif, frames_png, load_snapshots,
+from fenicsx_mortar.io.pictures import (Snapshot, animation_gif, frames_png, load_snapshots,
                                      save_snapshots, snapshot)
 
 PHI_MAX, PRESS = 0.41152, 0.5

@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from fenicsx_mortar import Friction, load_scene, solve
-from fenicsx_mortar.pictures import (Snapshot, animation_gif, frames_png, load_snapshots,
+from fenicsx_mortar.io.pictures import (Snapshot, animation_gif, frames_png, load_snapshots,
                                      save_snapshots, snapshot)
 
 PRESS, SLIDE = 1.0, 8.0

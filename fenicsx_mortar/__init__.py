@@ -10,6 +10,8 @@ Two ways in:
   :func:`solve`. DOLFINx is imported only when solving, so scenes can be built and checked
   without it.
 """
+from __future__ import annotations
+
 from .scene import (Body, Contact, Dirichlet, Enforcement, Friction, LoadCurve, Material,
                     MeshSource, OutputSettings, Pressure, RigidMotion, Scene, SceneError,
                     Steps, Traction, load_scene)
@@ -28,8 +30,8 @@ __all__ = ["Body", "Contact", "ContactPair", "ContactProblem", "Cut", "Dirichlet
            "SteppingResult", "Steps", "Timings", "Traction", "load_scene", "solve"]
 
 
-def solve(scene, out=None, **kwargs):
-    """Run ``scene`` (see :func:`fenicsx_mortar.run.solve` for the arguments).
+def solve(scene: Scene, out: str | None = None, **kwargs):
+    """Run ``scene`` (see :func:`fenicsx_mortar.scene.runner.solve` for the arguments).
 
     Args:
         scene: A validated :class:`Scene`.
@@ -39,7 +41,7 @@ def solve(scene, out=None, **kwargs):
     Returns:
         The run's ``Result`` (converged, message, steps, pairs, the displacement ``u``).
     """
-    from .run import solve as _solve
+    from .scene.runner import solve as _solve
     return _solve(scene, out, **kwargs)
 
 

@@ -1,24 +1,30 @@
-"""Every DOLFINx call of the package, on DOLFINx 0.5 (Debian 12) and 0.9 (Debian 13).
+"""Every DOLFINx call of the package, on DOLFINx 0.5 (Debian 12), 0.9 (Debian 13), 0.10 and
+0.11 (PyPI's ``dolfinx-solver-real``).
 
 The rest of the package (and the tests and benchmarks) calls DOLFINx only through this
 module. Written against the DOLFINx 0.9 API: what is spelled differently in another
-version is one function of ``_dolfinx_versions`` (``api`` below: ``v0_9`` or ``v0_5``,
-picked by ``dolfinx.__version__``); the calls made here directly are the same in 0.5 to
-0.11 (docs/dolfinx-versions.md). Array shapes are 0.9's: the geometry and dof maps are
-(num_cells, k) arrays.
+version is one function of ``_dolfinx_versions`` (``api`` below: ``v0_5``, ``v0_9``,
+``v0_10`` or ``v0_11``, picked by ``dolfinx.__version__``); the calls made here directly are
+the same in 0.5 to 0.11 (docs/dolfinx-versions.md), and petsc4py's renamings are feature
+tests here (``SNES_DIVERGED_NAN``, ``LINE_SEARCH_SECANT``). Array shapes are 0.9's: the
+geometry and dof maps are (num_cells, k) arrays.
 """
 from __future__ import annotations
 
+import atexit
 import ctypes
 import errno
 import logging
+
+# mpi4py.MPI first: the PyPI wheel's petsc4py and DOLFINx find MPICH's libmpi.so.12 only
+# once mpi4py has loaded it
+from mpi4py import MPI  # isort: skip
 
 import dolfinx
 import numpy as np
 import ufl
 from dolfinx import fem, io, mesh as dmesh
 from dolfinx.fem import petsc as fpetsc
-from mpi4py import MPI
 from petsc4py import PETSc
 
 from ._dolfinx_versions import select
@@ -32,7 +38,25 @@ api = select(VERSION)
 
 Mesh = dmesh.Mesh
 Function = fem.Function
+#: types for annotations (0.5 names some of them ...MetaClass)
+FunctionSpace = fem.FunctionSpace
+MeshTags = getattr(dmesh, "MeshTags", None) or getattr(dmesh, "MeshTagsMetaClass")
+Form = getattr(fem, "Form", None) or getattr(fem.forms, "FormMetaClass")
 ScalarType = PETSc.ScalarType
+
+_REASON = PETSc.SNES.ConvergedReason
+#: SNES's reason for a residual norm that is NaN or infinite (petsc4py 3.25 renamed
+#: DIVERGED_FNORM_NAN)
+SNES_DIVERGED_NAN = (_REASON.DIVERGED_FUNCTION_NANORINF
+                     if hasattr(_REASON, "DIVERGED_FUNCTION_NANORINF")
+                     else _REASON.DIVERGED_FNORM_NAN)
+#: PETSc's name of the secant line search on ‖F‖² that 3.24 renamed from "l2" ("l2" now
+#: names another algorithm)
+LINE_SEARCH_SECANT = "secant" if PETSc.Sys.getVersion() >= (3, 24, 0) else "l2"
+#: and what keeps it the same algorithm: 3.24 caps its step at maxlambda = 1 (l2 took steps
+#: up to maxstep = 1e8)
+LINE_SEARCH_SECANT_OPTIONS = ({"snes_linesearch_maxlambda": 1e8}
+                              if PETSc.Sys.getVersion() >= (3, 24, 0) else {})
 
 
 def model_to_mesh(model, comm: MPI.Comm, rank: int = 0):
@@ -315,6 +339,23 @@ def bc_dofs(bcs) -> np.ndarray:
     return np.unique(np.concatenate(out)) if out else np.zeros(0, dtype=np.int32)
 
 
+def bc_values(bcs, V) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Per Dirichlet condition on V, its owned (unrolled) dofs and the values it prescribes
+    there now."""
+    f = fem.Function(V)
+    vec = api.petsc_vec(f)
+    n_owned = owned_dof_count(V)
+    out = []
+    for bc in bcs:
+        with vec.localForm() as loc:
+            loc.set(0.0)
+        api.set_bc(vec, [bc], None, 1.0)
+        dofs = bc.dof_indices()[0]
+        dofs = dofs[dofs < n_owned]
+        out.append((dofs, vec.array_r[dofs].copy()))
+    return out
+
+
 def expression(expr, V) -> fem.Expression:
     """Compile a UFL expression for interpolation into V."""
     return fem.Expression(expr, api.interpolation_points(V))
@@ -342,11 +383,12 @@ class XDMFWriter:
         self._f = self._io(lambda: io.XDMFFile(comm, path, "w"))
         self._io(lambda: self._f.write_mesh(msh))
 
-    def _io(self, call):
+    def _io(self, call, file=None):
         try:
             return call()
         except RuntimeError as e:
             self.broken = True
+            _abandon(file if file is not None else self._f)
             raise OSError(errno.EIO, f"the HDF5 library failed ({e})", self._h5) from None
 
     def write(self, functions, t: float) -> None:
@@ -356,7 +398,72 @@ class XDMFWriter:
     def close(self) -> None:
         if self._f is not None and not self.broken:
             f, self._f = self._f, None
-            self._io(f.close)
+            self._io(f.close, f)
+
+
+def _abandon(xdmf_file) -> None:
+    """Never close a file whose write failed: closing fails again (an operation that failed
+    half-way leaves HDF5's cache entries protected), and PyPI's HDF5, built with
+    assertions, then aborts the process (-6 instead of the run's exit 1). Neither DOLFINx's
+    destructor (the object is kept for ever) nor HDF5's shutdown at exit or at
+    MPI_Finalize (told the library is closed already) gets to it."""
+    if xdmf_file is not None:      # (None: the open itself failed, inside DOLFINx)
+        ctypes.pythonapi.Py_IncRef(ctypes.py_object(xdmf_file))
+    global _hdf5_abandoned
+    if not _hdf5_abandoned:
+        _hdf5_abandoned = True
+        atexit.register(_skip_hdf5_shutdown)   # runs before mpi4py's MPI_Finalize
+
+
+def _skip_hdf5_shutdown() -> None:
+    for lib in _hdf5_libs:
+        try:
+            # H5_term_library does nothing while H5_libinit_g is false (HDF5 1.8 to 1.14)
+            ctypes.c_bool.in_dll(lib, "H5_libinit_g").value = False
+        except (ValueError, AttributeError):
+            pass                                     # another HDF5: as before
+
+
+_hdf5_abandoned = False
+
+
+def has_vtx() -> bool:
+    """Whether this DOLFINx writes VTX files (built with ADIOS2: PyPI's 0.11 is, Debian's
+    0.5.2 is not)."""
+    return hasattr(io, "VTXWriter")
+
+
+class VTXWriter:
+    """ParaView's VTX output (an ADIOS2 ``.bp`` folder): functions of one element type on
+    one mesh (a P1 vector and a DG0 tensor need a writer each), written per pseudo-time.
+
+    Args:
+        comm: the mesh's communicator (collective).
+        path: the ``.bp`` folder to write.
+        functions: the functions, all of the same space type.
+
+    Raises:
+        RuntimeError: this DOLFINx has no VTX output (built without ADIOS2).
+    """
+
+    def __init__(self, comm: MPI.Comm, path: str, functions) -> None:
+        if not has_vtx():
+            raise RuntimeError(f"VTX output needs DOLFINx built with ADIOS2; DOLFINx {VERSION} "
+                               "here is not (write XDMF instead: XDMFWriter)")
+        # (comm, filename, output): the same in 0.5 to 0.11
+        self._w = io.VTXWriter(comm, str(path), list(functions))
+
+    def write(self, t: float) -> None:
+        self._w.write(float(t))
+
+    def close(self) -> None:
+        self._w.close()
+
+    def __enter__(self) -> "VTXWriter":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
 
 
 def _quiet_hdf5() -> None:
@@ -376,6 +483,7 @@ def _quiet_hdf5() -> None:
     for path in paths:
         try:
             lib = ctypes.CDLL(path)
+            _hdf5_libs.append(lib)
             # herr_t H5Eset_auto2(hid_t estack, H5E_auto2_t func, void *data); hid_t is
             # int64_t since HDF5 1.10, H5E_DEFAULT = 0 (the default error stack)
             lib.H5Eset_auto2.argtypes = [ctypes.c_int64, ctypes.c_void_p, ctypes.c_void_p]
@@ -385,6 +493,7 @@ def _quiet_hdf5() -> None:
 
 
 _hdf5_quiet = False
+_hdf5_libs: list[ctypes.CDLL] = []
 
 
 def measures(msh: Mesh, cell_tags, facet_tags, degree: int):

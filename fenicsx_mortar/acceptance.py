@@ -10,7 +10,12 @@ augmentations) stopped: the state is accepted only if
   (it would be on the wrong side with zero pressure);
 * no node moved by more than :data:`FLOWN_OFF` times the mesh's size (Newton's answer to
   loads far beyond a material's stiffness: E = 1e-12 under a pressure of 1 gave |u| = 1e14);
-* no cell is inverted (J = det F ≤ 0 at a quadrature point or a corner).
+* no cell is inverted (J = det F ≤ 0 at a quadrature point or a corner);
+* no body that only contact holds along x or y (no Dirichlet value on that component)
+  touches nothing at the converged state: its stiffness is singular there and Newton's
+  answer is arbitrary (an exactly touching start with a round-off slip threw a body ~9
+  units sideways, and every step then "converged" with zero contact force). Needs the
+  bodies: ``cell_tags``, and pairs built with them.
 
 The first always applies; the others can be switched off
 (``ContactProblem(..., acceptance=False)``), e.g. for a deliberately unphysical test.
@@ -42,13 +47,15 @@ class Acceptance:
         quadrature_degree: Gauss points of the inverted-cell check (the corners are always
             checked).
         physical: Run the physical checks (passed-through nodes, flown off, inverted cells).
-        cell_tags: Optional cell meshtags, to name the body of an inverted cell.
+        cell_tags: Optional cell meshtags: the bodies, to name the body of an inverted cell
+            and to find those only contact holds.
         body_names: Optional names of the cell tag values.
+        bcs: The Dirichlet conditions (which directions of which body they hold).
     """
 
     def __init__(self, u, pairs: Sequence = (), quadrature_degree: int = 2,
                  physical: bool = True, cell_tags=None,
-                 body_names: Mapping[int, str] | None = None):
+                 body_names: Mapping[int, str] | None = None, bcs: Sequence = ()):
         self.u, self.pairs, self.physical = u, list(pairs), physical
         self.msh = msh = u.function_space.mesh
         F = ufl.Identity(2) + ufl.grad(u)
@@ -58,8 +65,11 @@ class Acceptance:
         if cell_tags is not None:
             tags[cell_tags.indices] = cell_tags.values
         names = dict(body_names or {})
+        self.names = names
         self.body = [names.get(int(t), f"cell tag {t}" if t >= 0 else "a cell")
                      for t in tags[self.cells]]
+        #: cell tag of each body → the components (0: x, 1: y) no Dirichlet value holds
+        self.free = _free_directions(u, bcs, cell_tags)
         x = dx.node_coordinates(msh)[:, :2]
         comm = msh.comm
         lo = [comm.allreduce(float(v), op=MPI.MIN) for v in x.min(axis=0, initial=np.inf)]
@@ -78,7 +88,36 @@ class Acceptance:
             why = p.passed_through()
             if why:
                 return why
-        return self.flown_off() or self.inverted()
+        return self.flown_off() or self.unsupported() or self.inverted()
+
+    def unsupported(self) -> str | None:
+        """A body that only contact holds along x or y but that no pair touches at the
+        converged state (collective: the pairs' states are the same on every rank).
+        Bodies count as held through the pairs with a closed gap (an active node, whether
+        or not it carries pressure: an exact touch under a load of 1e-9 converges at
+        p = 0), from the bodies the Dirichlet values hold."""
+        if not any(self.free.values()) or any(
+                p.slave.body_tag < 0 or p.master.body_tag < 0 for p in self.pairs):
+            return None
+        links = [(p.slave.body_tag, p.master.body_tag) for p in self.pairs
+                 if p.state is not None and np.any(p.state.active)]
+        for c, comp in enumerate("xy"):
+            held = {tag for tag, free in self.free.items() if c not in free}
+            grew = True
+            while grew:
+                grew = False
+                for a, b in links:
+                    if (a in held) != (b in held):
+                        held |= {a, b}
+                        grew = True
+            lost = [self.names.get(tag, f"cell tag {tag}") for tag, free in self.free.items()
+                    if c in free and tag not in held]
+            if lost:
+                return (f"body {lost[0]!r} is held along {comp} by contact alone (no "
+                        f"Dirichlet value on u_{comp}) and touches nothing at the converged "
+                        f"state: its stiffness is singular along {comp}, so this answer is "
+                        "arbitrary (was it pushed out of contact?)")
+        return None
 
     def flown_off(self) -> str | None:
         """A displacement beyond FLOWN_OFF times the mesh's size (collective)."""
@@ -112,3 +151,22 @@ class Acceptance:
                           for j, b, m in found)
         return (f"the solution inverts {count} cell(s) (J = det F <= 0 at a quadrature point "
                 f"or a corner, not a physical deformation): {where}")
+
+
+def _free_directions(u, bcs: Sequence, cell_tags) -> dict[int, set[int]]:
+    """Cell tag of each body → the components (0: x, 1: y) on which no node of it has a
+    Dirichlet value (collective); empty without cell tags."""
+    if cell_tags is None:
+        return {}
+    V = u.function_space
+    comm = V.mesh.comm
+    held = np.zeros(u.x.array.shape[0], dtype=bool)
+    held[dx.bc_dofs(bcs)] = True
+    blocks = dx.cell_dofs(V)
+    tags = sorted(set().union(*comm.allgather(set(np.unique(cell_tags.values).tolist()))))
+    out = {}
+    for tag in tags:
+        nodes = np.unique(blocks[cell_tags.indices[cell_tags.values == tag]])
+        have = [comm.allreduce(int(np.any(held[2 * nodes + c])), op=MPI.MAX) for c in (0, 1)]
+        out[int(tag)] = {c for c in (0, 1) if not have[c]}
+    return out

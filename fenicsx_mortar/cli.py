@@ -3,18 +3,32 @@ SCENE.toml``, and in a source checkout ``fenicsx-mortar study [--quick] [--out D
 (``python -m benchmarks.study``, docs/accuracy-vs-time.md).
 
 Exit codes: 0 converged, 1 the run stopped early (outputs up to the last converged step are
-kept), 2 bad input (one message naming the problem, no traceback).
+kept) or the environment does not let it start (an unusable JIT cache), 2 bad input (one
+message naming the problem, no traceback).
+
+The environment is not input: PETSc options come from the scene's ``solver.petsc`` only
+(checked there), so ``PETSC_OPTIONS``, ``PETSC_OPTIONS_YAML`` and ``.petscrc`` files are
+ignored, with a warning. A broken stdout or stderr (a closed pipe, a full disk) costs the
+log lines only, never the outputs; text the stream's encoding cannot take is escaped.
 """
 from __future__ import annotations
 
 import argparse
+import contextlib
 import errno
+import io
 import os
 import re
 import signal
 import sys
 import threading
 from pathlib import Path
+
+#: PETSc reads options from these variables at start-up; the run ignores them
+PETSC_VARIABLES = ("PETSC_OPTIONS", "PETSC_OPTIONS_YAML")
+#: JIT settings DOLFINx and FFCx read from the working directory (0.5 and 0.9 names)
+JIT_SETTINGS_FILES = ("dolfinx_jit_parameters.json", "dolfinx_jit_options.json",
+                      "ffcx_parameters.json", "ffcx_options.json")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -42,9 +56,16 @@ def _directory(text: str) -> Path:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """The command line (module docstring); returns the exit code."""
     argv = sys.argv[1:] if argv is None else list(argv)
     if argv[:1] == ["study"]:
         return _study(argv[1:])
+    ignored = _ignore_petsc_environment()
+    with _tolerant_streams():
+        return _main(argv, ignored)
+
+
+def _main(argv: list[str], ignored: list[str]) -> int:
     parser = _Parser(prog="fenicsx-mortar",
                      description="2D finite-deformation mortar contact on FEniCSx")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -62,19 +83,130 @@ def main(argv: list[str] | None = None) -> int:
                    "docs/accuracy-vs-time.md)")
     args = parser.parse_args(argv)
     with _Interrupt():
-        return _command(args)
+        return _command(args, ignored)
 
 
-def _command(args) -> int:
+def _ignore_petsc_environment() -> list[str]:
+    """Keep PETSc from reading options outside the scene, before it starts: the variables
+    are removed from this process's environment and the option files skipped
+    (``-skip_petscrc``); a viewer there could write anywhere (``-log_view :../x``) and
+    nothing would check it. Also no PETSc handler for SIGPIPE: a closed stdout would end
+    the run with a signal dump (Python then sees EPIPE, which the streams absorb).
+    Returns what was set and is ignored, for the warning."""
+    ignored = [v for v in PETSC_VARIABLES if os.environ.pop(v, "").strip()]
+    for place in (Path.cwd(), Path.home() if "HOME" in os.environ else None):
+        for name in (".petscrc", "petscrc"):
+            with contextlib.suppress(OSError, RuntimeError):
+                if place is not None and (place / name).is_file():
+                    ignored.append(str(place / name))
+    from mpi4py import MPI  # noqa: F401  (MPI first, with its thread level, as before)
+    if "petsc4py.PETSc" not in sys.modules:
+        import petsc4py
+        petsc4py.init([sys.argv[0] if sys.argv and sys.argv[0] else "fenicsx-mortar",
+                       "-skip_petscrc"])
+    from petsc4py import PETSc  # noqa: F401  (PETSc starts here, with those arguments)
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGPIPE, signal.SIG_IGN)
+    return ignored
+
+
+class _TolerantStream(io.TextIOBase):
+    """stdout or stderr that never stops the run: a write that fails (EPIPE after ``|
+    head``, ENOSPC on /dev/full) drops this and every later line of the stream, and text
+    the stream's encoding cannot take (PYTHONIOENCODING=ascii, a non-ASCII title) is
+    escaped (backslashreplace)."""
+
+    def __init__(self, stream):
+        self._stream, self.broken = stream, False
+
+    def write(self, s: str) -> int:
+        if not self.broken:
+            try:
+                self._stream.write(s)
+            except UnicodeEncodeError:
+                enc = getattr(self._stream, "encoding", None) or "ascii"
+                self._guard(lambda: self._stream.write(
+                    s.encode(enc, "backslashreplace").decode(enc, "replace")))
+            except (OSError, ValueError):
+                self._break()
+        return len(s)
+
+    def _guard(self, call) -> None:
+        try:
+            call()
+        except (OSError, ValueError, UnicodeError):
+            self._break()
+
+    def _break(self) -> None:
+        """From now on the stream's file descriptor writes to /dev/null: what is still
+        buffered, C libraries' own writes and Python's flush at exit then succeed (a
+        failed flush at exit is a message and exit code 120)."""
+        self.broken = True
+        with contextlib.suppress(OSError, ValueError, io.UnsupportedOperation):
+            fd = self._stream.fileno()
+            null = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(null, fd)
+            os.close(null)
+
+    def flush(self) -> None:
+        if not self.broken:
+            self._guard(self._stream.flush)
+
+    def isatty(self) -> bool:
+        return not self.broken and self._stream.isatty()
+
+    def fileno(self) -> int:
+        return self._stream.fileno()
+
+    def writable(self) -> bool:
+        return True
+
+    @property
+    def encoding(self):
+        return getattr(self._stream, "encoding", None)
+
+    @property
+    def buffer(self):
+        return self._stream.buffer
+
+    @property
+    def errors(self):
+        return "backslashreplace"
+
+
+@contextlib.contextmanager
+def _tolerant_streams():
+    """sys.stdout and sys.stderr as :class:`_TolerantStream` for the command; after it the
+    originals, flushed quietly (Python would report a failed flush at exit, with code
+    120)."""
+    old = sys.stdout, sys.stderr
+    sys.stdout, sys.stderr = (_TolerantStream(f) if f is not None else None for f in old)
+    try:
+        yield
+    finally:
+        for f in (sys.stdout, sys.stderr):
+            if f is not None:
+                f.flush()
+        sys.stdout, sys.stderr = old
+        for f in old:
+            with contextlib.suppress(OSError, ValueError):
+                if f is not None:
+                    f.flush()
+
+
+def _command(args, ignored: list[str] = ()) -> int:
     """Run the command; every anticipated failure is one line on stderr (rank 0) and the
     same exit code on every rank: 2 bad input, 1 the run stopped (RunError: a write
     failed, a signal outside the load steps). Anything else under MPI ends all ranks
     (MPI_Abort) instead of leaving them waiting for the one that failed."""
     from mpi4py import MPI
 
-    from .parallel import BrokenOutput, Interrupted, RunError
+    from .scene.parallel import BrokenOutput, Interrupted, RunError
     from .scene import SceneError
     comm = MPI.COMM_WORLD
+    if ignored and comm.rank == 0:
+        _say(f"fenicsx-mortar: warning: {', '.join(ignored)} ignored: PETSc options come from "
+             "the scene's solver.petsc only, where they are checked")
     try:
         return _dispatch(args, comm)
     except (Interrupted, BrokenOutput) as e:
@@ -87,10 +219,14 @@ def _command(args) -> int:
     except SceneError as e:
         _error(comm, e)
         return 2
-    except (RunError, TimeoutError) as e:   # TimeoutError: FFCx's JIT cache lock
+    except RunError as e:
         _error(comm, e)
         return 1
-    except Exception:
+    except Exception as e:
+        jit = _jit_failure(e)
+        if jit is not None:
+            _error(comm, jit)
+            return 1
         if comm.size > 1:
             import traceback
             traceback.print_exc()
@@ -100,7 +236,7 @@ def _command(args) -> int:
 
 
 def _dispatch(args, comm) -> int:
-    from .guards import check_petsc_options
+    from .scene.guards import check_petsc_options
     from .scene import SceneError, load_scene, load_scene_json
     if args.command == "run" and args.restart is not None:
         if args.scene is not None:
@@ -119,13 +255,15 @@ def _dispatch(args, comm) -> int:
     else:
         scene = load_scene(args.scene)
     if args.command == "check":
-        from .meshing import build_domain
+        from .scene.meshing import build_domain
         check_petsc_options(scene.solver)
-        build_domain(scene, comm)
+        dom = build_domain(scene, comm)
         if comm.rank == 0:
+            for w in dom.warnings:
+                print(f"{args.scene}: warning: {w}")
             print(f"{args.scene}: OK")
         return 0
-    from .run import solve
+    from .scene.runner import solve
 
     def show_warning(message, category, filename, lineno, file=None, line=None):
         # one line, from rank 0 (a library import routes warnings through logging, which
@@ -135,7 +273,10 @@ def _dispatch(args, comm) -> int:
     import warnings
     warnings.showwarning = show_warning
     out = args.out or Path("results") / args.scene.stem
-    result = solve(scene, out, comm, restart=args.restart is not None)
+    check_petsc_options(scene.solver)      # before --out is made for a scene refused
+    _check_jit_cache(comm)
+    with _locked(out, comm, "--restart" if args.restart is not None else "--out"):
+        result = solve(scene, out, comm, restart=args.restart is not None)
     if comm.rank == 0:
         t = result.timings
         print(f"summary: {'converged' if result.converged else 'NOT converged'}, "
@@ -152,6 +293,81 @@ def _dispatch(args, comm) -> int:
             why = re.sub(r", residuals [^;]*", "", result.message.splitlines()[0])
             _say(f"fenicsx-mortar: error: run failed: {why}")
     return 0 if result.converged else 1
+
+
+@contextlib.contextmanager
+def _locked(out: Path, comm, key: str):
+    """``out`` made (``--out``) and locked by rank 0 for the run: a second run into it is
+    refused by name on every rank."""
+    from .io.output import locked, prepare_out
+    from .scene.parallel import on_rank0
+    with contextlib.ExitStack() as stack:
+        def take() -> None:
+            if key == "--out":
+                prepare_out(out)
+            stack.enter_context(locked(out, key))
+        on_rank0(comm, take)
+        yield
+
+
+def _check_jit_cache(comm) -> None:
+    """The JIT (FFCx's compiled forms) must find its settings and a cache directory this
+    process can write (every rank): else the compile fails deep inside DOLFINx with a
+    traceback. No settings file in the working directory: it would set compiler flags
+    (code run by the compiler) or put the cache anywhere. Raises RunError naming the place
+    and the variable that sets it."""
+    from . import _dolfinx as dx
+    from .scene.parallel import RunError, agree
+
+    def probe() -> None:
+        import tempfile
+        here = [n for n in JIT_SETTINGS_FILES if Path(n).exists()]
+        if here:
+            raise RunError(f"{Path.cwd() / here[0]}: DOLFINx and FFCx read their JIT settings "
+                           "(compiler flags, the cache's place, the number type) from a file "
+                           "of this name in the working directory; the command line does not "
+                           "run with one: remove it or run elsewhere (settings in "
+                           "XDG_CONFIG_HOME are yours and are kept)")
+        try:
+            cache = Path(dx.jit_cache_dir())
+        except OSError as e:     # its settings file (~/.config/dolfinx/...) is unreadable
+            raise RunError(f"DOLFINx cannot read its JIT settings {e.filename} "
+                           f"({e.strerror}): the place is set by "
+                           f"{_placed_by('XDG_CONFIG_HOME')}; set XDG_CONFIG_HOME to a "
+                           "readable directory") from None
+        try:
+            cache.mkdir(parents=True, exist_ok=True)
+            with tempfile.TemporaryFile(dir=cache):
+                pass
+        except OSError as e:
+            raise RunError(f"the JIT cache {cache} is not a writable directory "
+                           f"({e.strerror}): the place is set by "
+                           f"{_placed_by('XDG_CACHE_HOME')}; set XDG_CACHE_HOME to a "
+                           "writable directory") from None
+    agree(comm, probe)
+
+
+def _jit_failure(e: Exception) -> str | None:
+    """The one-line message of a JIT failure that a broken cache entry explains (a
+    truncated or foreign module: ImportError; a C file without its module, left by a
+    compile that was killed: FFCx's TimeoutError; under MPI DOLFINx's RuntimeError for
+    either), or None for any other error."""
+    text = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+    if isinstance(e, TimeoutError) or (isinstance(e, ImportError) and (
+            "JIT module" in text or "libffcx_" in text)) or (
+            isinstance(e, RuntimeError) and text.startswith("Failed just-in-time")):
+        from . import _dolfinx as dx
+        try:
+            cache = dx.jit_cache_dir()
+        except OSError:
+            cache = "of DOLFINx"
+        return (f"the JIT cache {cache} has a broken entry ({type(e).__name__}: {text}); "
+                "remove the directory (it is made again) and run again")
+    return None
+
+
+def _placed_by(variable: str) -> str:
+    return variable if os.environ.get(variable) else f"HOME ({variable} is not set)"
 
 
 def _abort_all(comm, e: Exception) -> None:
@@ -213,8 +429,8 @@ class _Interrupt:
 
     @staticmethod
     def _raise(signum, frame):
-        from .parallel import Interrupted
-        run = sys.modules.get("fenicsx_mortar.run")   # not imported yet: still reading
+        from .scene.parallel import Interrupted
+        run = sys.modules.get("fenicsx_mortar.scene.runner")   # not imported yet: still reading
         doing = run.phase() if run else "reading the scene"
         raise Interrupted(f"interrupted by {signal.Signals(signum).name} while {doing}; "
                        "what converged is kept")

@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from typing import Callable
 
+from mpi4py import MPI  # noqa: F401  (before petsc4py: the PyPI wheel needs it)
 from petsc4py import PETSc
 
 #: the full step is kept when it divides the residual norm by 4 at least (with 2: Hertz

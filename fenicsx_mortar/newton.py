@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
 import numpy as np
+from mpi4py import MPI  # noqa: F401  (before petsc4py: the PyPI wheel needs it, _dolfinx.py)
 from petsc4py import PETSc
 
 from . import _dolfinx as dx
@@ -34,8 +35,6 @@ from .timings import Timings
 
 _REASON = PETSc.SNES.ConvergedReason
 _REASONS = {v: k for k, v in vars(_REASON).items() if isinstance(v, int)}
-#: a NaN or inf residual (petsc4py 3.25 renamed the member)
-_NAN = getattr(_REASON, "DIVERGED_FNORM_NAN", None) or _REASON.DIVERGED_FUNCTION_NANORINF
 #: MUMPS's ICNTL(14) (workspace margin, per cent): its default, and how far
 #: :meth:`NewtonSolver.grow_workspace` raises it
 DEFAULT_WORKSPACE, MAX_WORKSPACE = 20, 160
@@ -76,7 +75,14 @@ class ActiveSetMonitor:
         self._seen = [[] for _ in self.pairs]
 
     def cycling(self, fnorm: float) -> str | None:
-        """A description of the first cycle found, or None."""
+        """Record the pairs' decisions of this iterate and look for a cycle.
+
+        Args:
+            fnorm: The iterate's residual norm.
+
+        Returns:
+            A description of the first cycle found, or None.
+        """
         for h, seen in zip(self.pairs, self._seen):
             d = h.decision()
             if d is None:
@@ -95,14 +101,41 @@ class ActiveSetMonitor:
         return None
 
 
-def _weak(method: Callable) -> Callable:
-    """A callback that calls ``method`` while its object lives (no strong reference)."""
+def weak_callback(method: Callable) -> Callable:
+    """A plain function calling the bound ``method`` through a weak reference to its
+    object. Given to a SNES, a bound method makes a cycle (solver → SNES → method →
+    solver) that reference counting never frees, and petsc4py keeps callbacks where
+    Python's cycle collector does not look: every solver ever made, with its SNES, matrix
+    and MPI communicator, stayed (MPICH allows 2048 communicators a process).
+
+    Args:
+        method: A bound method.
+
+    Returns:
+        A function taking the method's arguments; it raises RuntimeError once the object
+        is gone.
+    """
     ref = weakref.WeakMethod(method)
 
     def call(*args):
-        m = ref()
-        return None if m is None else m(*args)
+        bound = ref()
+        if bound is None:
+            raise RuntimeError("called back after its solver was freed")
+        return bound(*args)
     return call
+
+
+def _release(snes, system, full_first, collective: bool = False) -> None:
+    """Destroy a solver's PETSc objects: on ``close()`` (collective), or when its last
+    reference went in a serial run. Under MPI that may have been a garbage collection on
+    one rank only (rank 0's plots leave cycles), where a destroy, collective in MUMPS,
+    would hang: the objects go to petsc4py's garbage, which a collective cleanup empties
+    (the next solve on the communicator, PETSc's finalization)."""
+    if collective or snes.comm.size == 1:
+        for obj in (snes, system.A, system.b, system.x, *system.owned_objects(),
+                    full_first._w, full_first._f):
+            if obj is not None:
+                obj.destroy()
 
 
 class NewtonSolver:
@@ -155,25 +188,45 @@ class NewtonSolver:
         #: the line search in use (a full-Newton retry switches to "basic" and back to it)
         self.line_search = str(user.get("snes_linesearch_type", settings.line_search))
         self._full_first = FullStepOrSecant(
-            _weak(self._evaluate), _weak(self._function_norm), fail=_weak(self._line_failed))
-        self.snes.setFunction(_weak(self._residual), self.b)
-        self.snes.setJacobian(_weak(self._jacobian), self.A)
-        self.snes.setConvergenceTest(_weak(self._converged))
+            weak_callback(self._evaluate), weak_callback(self._function_norm),
+            fail=weak_callback(self._line_failed))
+        self.snes.setFunction(weak_callback(self._residual), self.b)
+        self.snes.setJacobian(weak_callback(self._jacobian), self.A)
+        self.snes.setConvergenceTest(weak_callback(self._converged))
         self._options = po.Applied(prefix, settings, user,
                                    condensed=getattr(self.system, "condensed", False))
         self.system.configure(self.snes, self._options)
         # registered once, switched on and off (_set_precheck): PETSc ignores a NULL
         # precheck, and petsc4py's setLineSearchPreCheck(None) then leaves a dangling
         # context (a crash, seen)
-        self.snes.setLineSearchPreCheck(_weak(self._full_first.precheck))
+        self.snes.setLineSearchPreCheck(weak_callback(self._full_first.precheck))
         self._set_precheck(self.line_search)
+        self._release = weakref.finalize(self, _release, self.snes, self.system,
+                                         self._full_first)
+        self._release.atexit = False   # at exit PETSc's own finalization does it
+
+    @property
+    def closed(self) -> bool:
+        """The PETSc objects are destroyed (:meth:`close`)."""
+        return not self._release.alive
 
     def close(self) -> None:
-        """Destroy the PETSc objects (SNES, matrix, vectors) and drop the kept options."""
-        for obj in (self.snes, self.A, self.b, self.x, *self.system.owned_objects()):
-            if obj is not None:
-                obj.destroy()
+        """Destroy the PETSc objects (SNES, matrices, vectors) and drop the kept options
+        now, as DOLFINx 0.10's ``NonlinearProblem`` does; u keeps its values. Without it
+        that happens when the last reference to the solver goes. Collective, idempotent;
+        the solver cannot solve afterwards."""
+        if self.closed:
+            return
+        _, _, args, _ = self._release.detach()
+        _release(*args, collective=True)
         self._options.drop()
+        self._collect_garbage()
+
+    def _collect_garbage(self) -> None:
+        """Destroy the PETSc objects Python let go of on u's communicator (a saved state, a
+        reactions vector): petsc4py >= 3.18 parks them until this collective call, keyed
+        by PETSc's communicator (not mpi4py's), for ever if nobody calls it."""
+        PETSc.garbage_cleanup(dx.function_vector(self.u).comm)
 
     # -- SNES callbacks -------------------------------------------------------------
     def _function_norm(self) -> float:
@@ -202,7 +255,12 @@ class NewtonSolver:
         self._evaluate(x, b)
 
     def evaluate_residual(self, x: PETSc.Vec, b: PETSc.Vec) -> None:
-        """b = F(x), bulk and contact (the state moves to x)."""
+        """b = F(x), bulk and contact (the state moves to x).
+
+        Args:
+            x: The unknowns (the system's layout).
+            b: The residual, overwritten.
+        """
         self._evaluate(x, b)
 
     def _evaluate(self, x, b) -> None:
@@ -218,7 +276,12 @@ class NewtonSolver:
                 p.add_residual(b, self.bc_dofs)
 
     def evaluate_jacobian(self, x: PETSc.Vec, A: PETSc.Mat) -> None:
-        """A = dF/dx at the state of the last residual evaluation (that at x)."""
+        """A = dF/dx at the state of the last residual evaluation (that at x).
+
+        Args:
+            x: The unknowns of the last :meth:`evaluate_residual`.
+            A: The Jacobian matrix, overwritten.
+        """
         self._jacobian(None, x, A, A)
 
     def _jacobian(self, snes, x, A, P) -> None:
@@ -241,7 +304,7 @@ class NewtonSolver:
         self.history.append(float(fnorm))
         s = self.settings
         if not math.isfinite(fnorm):
-            return _NAN
+            return dx.SNES_DIVERGED_NAN
         if self.should_stop():
             return _REASON.DIVERGED_INNER  # petsc4py has no DIVERGED_USER
         small = fnorm <= s.atol and (fnorm <= s.rtol * self._r0 or self._r0 <= s.atol)
@@ -263,7 +326,19 @@ class NewtonSolver:
         self._r0 = None
 
     def solve_step(self, max_augmentations: int = 50) -> StepResult:
-        """Newton solves (one per augmentation) from the current state at the current load."""
+        """Newton solves (one per augmentation) from the current state at the current load,
+        ended by the acceptance check :attr:`accept`.
+
+        Args:
+            max_augmentations: Newton solves after the first.
+
+        Returns:
+            What happened (the state is left where the solves ended).
+        """
+        if self.closed:
+            raise RuntimeError("NewtonSolver: closed (its PETSc objects are destroyed); "
+                               "make a new one")
+        self._collect_garbage()
         res = StepResult(converged=False)
         self.begin_step()
         for aug in range(max_augmentations + 1):
@@ -332,16 +407,22 @@ class NewtonSolver:
 
     def set_line_search(self, kind: str) -> None:
         """Switch SNES's line search (through the options database, as petsc4py before 3.24
-        has no line-search object; dropped again once applied)."""
+        has no line-search object; dropped again once applied).
+
+        Args:
+            kind: One of :data:`~.settings.LINE_SEARCHES`.
+        """
         opts = PETSc.Options()
-        key = self.prefix + "snes_linesearch_type"
-        before = opts.getString(key) if opts.hasName(key) else None
-        opts[key] = po.line_search_type(kind)
+        keys = {self.prefix + k: v for k, v in po.line_search_options(kind).items()}
+        before = {k: opts.getString(k) for k in keys if opts.hasName(k)}
+        for k, v in keys.items():
+            opts[k] = v
         self.snes.setFromOptions()
-        if before is None:
-            opts.delValue(key)
-        else:
-            opts[key] = before
+        for k in keys:
+            if k in before:
+                opts[k] = before[k]
+            else:
+                opts.delValue(k)
         self._set_precheck(kind)
 
     def _set_precheck(self, kind: str) -> None:
@@ -349,9 +430,15 @@ class NewtonSolver:
         self._full_first.forget()
 
     def save_state(self) -> PETSc.Vec:
+        """A copy of the unknowns (for :meth:`restore_state`)."""
         return self.x.copy()
 
     def restore_state(self, saved: PETSc.Vec) -> None:
+        """Back to saved unknowns; the pairs' states follow.
+
+        Args:
+            saved: From :meth:`save_state`.
+        """
         saved.copy(self.x)
         self._set_iterate(self.x)
 

@@ -16,8 +16,10 @@ import ctypes.util
 import weakref
 from typing import Iterable, Mapping
 
+from mpi4py import MPI  # noqa: F401  (before petsc4py: the PyPI wheel needs it, _dolfinx.py)
 from petsc4py import PETSc
 
+from . import _dolfinx as dx
 from .settings import SolverSettings
 
 #: options read at a factorization or a preconditioner's set-up, not at the solver's: kept
@@ -50,8 +52,17 @@ def normalize(options: Mapping[str, object] | None) -> dict[str, str]:
 
 
 def line_search_type(kind: str) -> str:
-    """PETSc's line-search type for ours: ``l2-full`` is ``basic`` with a precheck."""
-    return "basic" if kind == "l2-full" else kind
+    """PETSc's line-search type for ours: ``l2-full`` is ``basic`` with a precheck; ``l2``
+    is PETSc's secant search, whatever this PETSc calls it."""
+    return "basic" if kind == "l2-full" else (dx.LINE_SEARCH_SECANT if kind == "l2" else kind)
+
+
+def line_search_options(kind: str) -> dict[str, str]:
+    """PETSc options of our line search ``kind`` (PETSc >= 3.24's secant search also
+    needs its step range set to l2's)."""
+    petsc = line_search_type(kind)
+    extra = dx.LINE_SEARCH_SECANT_OPTIONS if petsc == dx.LINE_SEARCH_SECANT else {}
+    return {"snes_linesearch_type": petsc, **{k: str(v) for k, v in extra.items()}}
 
 
 #: GMRES on the condensed contact Jacobian (nonsymmetric): right preconditioning, so
@@ -92,8 +103,7 @@ def linear_solver_options(name: str, condensed: bool = False) -> dict[str, str]:
 def defaults(settings: SolverSettings, condensed: bool = False) -> dict[str, str]:
     """The package's options for ``settings``, before the user's (``condensed``: for the
     inner solve of the condensed system)."""
-    out = {"snes_type": "newtonls",
-           "snes_linesearch_type": line_search_type(settings.line_search),
+    out = {"snes_type": "newtonls", **line_search_options(settings.line_search),
            "snes_max_it": str(settings.max_iterations), "snes_max_funcs": "100000"}
     out.update(linear_solver_options(settings.linear_solver, condensed))
     return out

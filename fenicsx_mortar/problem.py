@@ -23,7 +23,7 @@ from __future__ import annotations
 import dataclasses
 import warnings
 import weakref
-from typing import Callable, Mapping, Sequence
+from typing import TYPE_CHECKING, Callable, Mapping, Sequence
 
 import numpy as np
 import ufl
@@ -36,6 +36,9 @@ from .condensation import condensable
 from .newton import NewtonSolver, StepResult
 from .settings import SolverSettings, check_number, resolve_linear_solver
 from .timings import Timings
+
+if TYPE_CHECKING:
+    from .contact.pair import ContactPair
 
 
 class ContactProblem:
@@ -71,11 +74,12 @@ class ContactProblem:
         ValueError: an argument that cannot work, named.
     """
 
-    def __init__(self, F, u, bcs: Sequence = (), pairs: Sequence = (), J=None, *,
+    def __init__(self, F: ufl.Form | dx.Form, u: dx.Function, bcs: Sequence = (),
+                 pairs: Sequence[ContactPair] = (), J: ufl.Form | dx.Form | None = None, *,
                  petsc_options_prefix: str = "fenicsx_mortar_",
                  petsc_options: Mapping[str, object] | None = None,
                  settings: SolverSettings | None = None, acceptance: bool = True,
-                 max_augmentations: int = 30, cell_tags=None,
+                 max_augmentations: int = 30, cell_tags: dx.MeshTags | None = None,
                  body_names: Mapping[int, str] | None = None,
                  timings: Timings | None = None,
                  should_stop: Callable[[], str | None] | None = None):
@@ -107,7 +111,10 @@ class ContactProblem:
         for p in self.pairs:
             p.timings = self.timings
             p._problem = weakref.ref(self)
+            # the ALM's KKT test asks no more of the gaps than this tolerance resolves
+            p.enforcement.force_resolution = settings.atol
         self._closed = False
+        self._shared_bc_dofs: bool | None = None
         matrix = None
         if self.pairs:
             with self.timings("contact"):
@@ -118,9 +125,11 @@ class ContactProblem:
                                    self.pairs, self.timings, matrix,
                                    should_stop or (lambda: None), petsc_options_prefix,
                                    po.normalize(petsc_options))
+        if matrix is not None and matrix is not self.newton.A:
+            matrix.destroy()   # read once for the multipliers' pattern (system.py)
         self.newton.accept = Acceptance(u, self.pairs, settings.quadrature_degree,
                                         physical=acceptance, cell_tags=cell_tags,
-                                        body_names=body_names)
+                                        body_names=body_names, bcs=self.bcs)
 
     @property
     def solver(self):
@@ -146,7 +155,9 @@ class ContactProblem:
             ``residuals``, ``augmentations``, ``reason``).
         """
         if self._closed:
-            raise ValueError("solve(): the problem was closed")
+            raise RuntimeError("ContactProblem: closed (its PETSc objects are destroyed); "
+                               "make a new one")
+        self._check_supports()
         newton = self.newton
         newton.system.pull(newton.x)   # the user may have set u
         saved = newton.save_state()
@@ -164,12 +175,48 @@ class ContactProblem:
         saved.destroy()
         return res
 
+    def _check_supports(self) -> None:
+        """Two Dirichlet conditions on one dof must prescribe one value: DOLFINx applies
+        one of them silently, and the other support's reaction is then meaningless (two
+        support groups sharing a corner, one at y = 0, one at y = 0.1: reactions −26.2 and
+        +32.3 for a load of 1). Checked at every solve: the values change with the loads
+        (collective)."""
+        V = self.u.function_space
+        conflict = None
+        if self._shared_bc_dofs is None:     # whether two conditions share a dof at all
+            dofs = [bc.dof_indices()[0] for bc in self.bcs]
+            local = len(dofs) > 1 and len(np.unique(np.concatenate(dofs))) < \
+                sum(len(d) for d in dofs)
+            self._shared_bc_dofs = V.mesh.comm.allreduce(bool(local), op=MPI.LOR)
+        values = dx.bc_values(self.bcs, V) if self._shared_bc_dofs else []
+        if values:
+            dofs = np.concatenate([d for d, _ in values])
+            vals = np.concatenate([v for _, v in values])
+            which = np.concatenate([np.full(len(d), k) for k, (d, _) in enumerate(values)])
+            order = np.lexsort((which, dofs))
+            dofs, vals, which = dofs[order], vals[order], which[order]
+            same = dofs[1:] == dofs[:-1]
+            tol = 1e-12 * np.maximum(np.maximum(np.abs(vals[1:]), np.abs(vals[:-1])), 1e-300)
+            bad = np.flatnonzero(same & (np.abs(vals[1:] - vals[:-1]) > tol))
+            if bad.size:
+                i = bad[0]
+                x = np.round(dx.dof_coordinates(V)[dofs[i] // 2], 12) + 0.0
+                conflict = (int(which[i]), int(which[i + 1]), float(vals[i]),
+                            float(vals[i + 1]), int(dofs[i] % 2), float(x[0]), float(x[1]))
+        found = [c for c in V.mesh.comm.allgather(conflict) if c]
+        if found:
+            j, k, w, v, comp, x, y = found[0]
+            raise ValueError(f"bcs[{j}] and bcs[{k}] prescribe different values, {w:.6g} and "
+                             f"{v:.6g}, to the {'xy'[comp]} component at ({x:.6g}, {y:.6g}): "
+                             "one support would silently win; give each dof one value "
+                             "(leave the shared node out of one condition)")
+
     def reactions(self):
         """F(u) with contact and without Dirichlet rows, a PETSc Vec in u's layout: at a
         constrained dof, the force its support exerts on the body."""
         return self.newton.unconstrained_residual()
 
-    def reaction(self, facet_tags, tag: int | Sequence[int]) -> np.ndarray:
+    def reaction(self, facet_tags: dx.MeshTags, tag: int | Sequence[int]) -> np.ndarray:
         """The force (x, y) that the supports on the tagged facets exert on the body: the
         sum of F(u) (contact included, Dirichlet rows not replaced) over the dofs of those
         facets, summed over the ranks (collective).

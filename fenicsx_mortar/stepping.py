@@ -27,15 +27,28 @@ if TYPE_CHECKING:
 
 @dataclass(frozen=True)
 class StepStarted:
-    """An increment is tried: step ``step`` to pseudo-time ``time``."""
+    """An increment is tried.
+
+    Attributes:
+        step: The step it would be.
+        time: Its target pseudo-time.
+    """
     step: int
     time: float
 
 
 @dataclass(frozen=True)
 class Retried:
-    """The failed increment is tried again another way (``how``: "workspace" — MUMPS's
-    ICNTL(14) raised to ``value`` — or "full Newton steps")."""
+    """The failed increment is tried again another way.
+
+    Attributes:
+        step: The step it would be.
+        time: Its target pseudo-time.
+        how: ``"workspace"`` (MUMPS's ICNTL(14) raised to ``value``) or
+            ``"full Newton steps"``.
+        reason: Why the last attempt failed.
+        value: The new workspace margin (per cent), for ``"workspace"``.
+    """
     step: int
     time: float
     how: str
@@ -45,7 +58,14 @@ class Retried:
 
 @dataclass(frozen=True)
 class Cut:
-    """The increment to ``time`` failed (``reason``): retried with ``increment``."""
+    """An increment failed and is cut.
+
+    Attributes:
+        step: The step it would have been.
+        time: The pseudo-time it aimed at.
+        increment: The next, halved increment.
+        reason: Why it failed.
+    """
     step: int
     time: float
     increment: float
@@ -54,7 +74,14 @@ class Cut:
 
 @dataclass(frozen=True)
 class StepDone:
-    """Step ``step`` converged at pseudo-time ``time`` after ``cuts`` cuts."""
+    """A load step converged (and is committed).
+
+    Attributes:
+        step: Its number (from 1, or from the restart's step).
+        time: Its pseudo-time.
+        result: The Newton solve's result.
+        cuts: Cuts of its increment before it converged.
+    """
     step: int
     time: float
     result: StepResult
@@ -81,7 +108,11 @@ class SteppingResult:
 
 
 def print_progress(event: Event) -> None:
-    """The default ``on_event``: one line per converged step and per cut, on rank 0."""
+    """The default ``on_event``: one line per converged step, retry and cut, on rank 0.
+
+    Args:
+        event: What the stepper did.
+    """
     if MPI.COMM_WORLD.rank != 0:
         return
     if isinstance(event, StepDone):
@@ -218,8 +249,16 @@ class _Increment:
 
 
 def grow_workspace(inc: _Increment, res: StepResult) -> StepResult:
-    """MUMPS ran out of workspace: a smaller increment would not need less, so raise its
-    workspace (ICNTL(14)) and try again, until it is at its maximum."""
+    """A recovery: MUMPS ran out of workspace, and a smaller increment would not need less,
+    so raise its workspace (ICNTL(14)) and try again, until it is at its maximum.
+
+    Args:
+        inc: The increment being tried.
+        res: Its failed result.
+
+    Returns:
+        The result of the last attempt (or ``res``).
+    """
     newton = inc.stepper.problem.newton
     while not res.converged and res.workspace and not newton.should_stop():
         grown = newton.grow_workspace()
@@ -235,7 +274,15 @@ def full_newton_steps(inc: _Increment, res: StepResult) -> StepResult:
     makes the residual only semismooth, and a line search can stall on its kinks where full
     steps go through (Hertz, mortar, penalty 10 E/h at h = a/2). With path-dependent pairs
     (friction) only when the increment cannot be cut any more: another attempt sequence is
-    another (equally valid) load path."""
+    another (equally valid) load path.
+
+    Args:
+        inc: The increment being tried.
+        res: Its failed result.
+
+    Returns:
+        The result with full steps (or ``res`` when not tried).
+    """
     newton = inc.stepper.problem.newton
     line_search = newton.line_search
     if line_search == "basic":

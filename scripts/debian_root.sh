@@ -3,8 +3,9 @@
 # Debian's DOLFINx stack, for running the project's tests against the other DOLFINx version
 # than the host's (.ci/run: on a Debian 12 host trixie, on a Debian 13 host bookworm).
 #
-#   scripts/debian_root.sh [--suite trixie|bookworm] [--repo DIR] -- CMD ARGS...
+#   scripts/debian_root.sh [--suite trixie|bookworm] [--repo DIR] [--venv NAME] -- CMD ARGS...
 #   scripts/debian_root.sh -- make test
+#   scripts/debian_root.sh --venv pip -- make test DOLFINX=pip     (DOLFINx 0.11 from PyPI)
 #   scripts/debian_root.sh --suite bookworm -- python3 -c 'import dolfinx; print(dolfinx.__version__)'
 #   scripts/debian13_root.sh ...         (the same as --suite trixie, the default)
 #
@@ -20,26 +21,31 @@
 # A flock serialises building; running is shared, so several commands may run at once.
 #
 # DIR/.venv (the host's venv, another Python) is hidden inside the root behind a venv kept
-# in the root (ROOT/var/lib/fm-venvs/<hash of DIR>), so `make test` works unchanged in
-# both; the host's .venv is never touched.
+# in the root (ROOT/var/lib/fm-venvs/<hash of DIR>[-NAME]), so `make test` works unchanged in
+# both; the host's .venv is never touched. --venv NAME keeps another venv for the same DIR
+# (the pip route's beside the apt route's).
 # CMD gets a clean environment (PATH, HOME=/root, LANG, CI, Open MPI's run-as-root and
 # oversubscribe switches); pass more with `-- env VAR=value CMD...`.
 # Needs root, debootstrap (installed with apt-get if missing) and the network to the
-# machine's Debian archive. Environment, per suite (TRIXIE or BOOKWORM): FM_<SUITE>_ROOT,
-# FM_<SUITE>_MIRROR (override mirror), FM_<SUITE>_EXTRA_PKGS (more packages; a changed list
-# installs them into the cached root).
+# machine's Debian archive (read from its apt sources; where they name none, set
+# FM_<SUITE>_MIRROR). Environment, per suite (TRIXIE or BOOKWORM): FM_<SUITE>_ROOT,
+# FM_<SUITE>_MIRROR (the archive's URL), FM_<SUITE>_EXTRA_PKGS (more packages; a changed
+# list installs them into the cached root).
 set -euo pipefail
 
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 repo=$(cd "$here/.." && pwd)
 SUITE=trixie
-usage="usage: $0 [--suite trixie|bookworm] [--repo DIR] -- CMD ARGS..."
+VENV=""
+usage="usage: $0 [--suite trixie|bookworm] [--repo DIR] [--venv NAME] -- CMD ARGS..."
 while [ $# -gt 0 ]; do
   case "$1" in
     --suite) SUITE=${2:-}; shift 2 ;;
     --suite=*) SUITE=${1#--suite=}; shift ;;
     --repo) repo=$(cd "$2" && pwd); shift 2 ;;
     --repo=*) repo=$(cd "${1#--repo=}" && pwd); shift ;;
+    --venv) VENV=${2:-}; shift 2 ;;
+    --venv=*) VENV=${1#--venv=}; shift ;;
     --) shift; break ;;
     -h|--help) sed -n '2,/^set -euo/{/^#/s/^# \{0,1\}//p}' "${BASH_SOURCE[0]}"; exit 0 ;;
     *) echo "debian_root: unknown argument '$1' ($usage)" >&2; exit 2 ;;
@@ -50,6 +56,10 @@ case "$SUITE" in
   *) echo "debian_root: suite '$SUITE' is not one the project runs on: trixie (Debian 13) or bookworm (Debian 12)" >&2; exit 2 ;;
 esac
 [ $# -gt 0 ] || { echo "debian_root: no command ($usage)" >&2; exit 2; }
+case "$VENV" in
+  ""|[A-Za-z0-9]|[A-Za-z0-9][A-Za-z0-9_-]*) ;;
+  *) echo "debian_root: --venv '$VENV': letters, digits, '-' and '_' only" >&2; exit 2 ;;
+esac
 [ "$(id -u)" -eq 0 ] || { echo "debian_root: must run as root (debootstrap, chroot, mount)" >&2; exit 1; }
 
 # FM_TRIXIE_ROOT, FM_TRIXIE_MIRROR, FM_TRIXIE_EXTRA_PKGS (or FM_BOOKWORM_...)
@@ -92,7 +102,10 @@ mirror() {
                  if (u!="" && u ~ /debian\/?$/ && s !~ /security/) { print u; exit } }' "$f")
     [ -n "$url" ] && { echo "$url"; return; }
   done
-  echo "http://deb.debian.org/debian"
+  log "found no Debian archive in this machine's apt sources (/etc/apt/sources.list," \
+      "/etc/apt/sources.list.d/); set $mirror_var to the URL of a Debian archive this" \
+      "machine reaches (the one its apt uses), e.g. $mirror_var=http://HOST/debian"
+  return 1
 }
 
 # Refuse to touch a root that still has something mounted below it (a crashed run
@@ -115,7 +128,7 @@ build() {
       apt-get update -q
       DEBIAN_FRONTEND=noninteractive apt-get install -y -q debootstrap
     fi
-    local m; m=$(mirror)
+    local m; m=$(mirror) || exit 1
     log "debootstrap --variant=minbase $SUITE $ROOT $m"
     mkdir -p "$ROOT"
     # In a private mount namespace: whatever debootstrap mounts cannot leak to the host.
@@ -148,12 +161,12 @@ EOF
 # (The inner script goes in as an argument: CMD keeps this script's stdin.)
 in_root() {
   local r="$1"; shift
-  SUITE="$SUITE" unshare --mount --propagation private /bin/bash -c "$INNER" fm-debian-root-inner "$ROOT" "$r" "$@"
+  SUITE="$SUITE" unshare --mount --propagation private /bin/bash -c "$INNER" fm-debian-root-inner "$ROOT" "$r" "$VENV" "$@"
 }
 
 read -r -d '' INNER <<'INNER' || true
 set -euo pipefail
-ROOT=$1 REPO=$2; shift 2
+ROOT=$1 REPO=$2 VENV=$3; shift 3
 mounted=()
 cleanup() {
   local i
@@ -186,7 +199,7 @@ if [ -n "$REPO" ]; then
   # never leaves the root's venv (another Python) for the host to trip over.
   if [ -f "$REPO/scripts/setup.sh" ] && [ ! -e "$REPO/.venv" ]; then mkdir "$REPO/.venv"; fi
   if [ -d "$REPO/.venv" ]; then
-    key=$(printf '%s' "$REPO" | md5sum | cut -c1-12)
+    key=$(printf '%s' "$REPO" | md5sum | cut -c1-12)${VENV:+-$VENV}
     mkdir -p "$ROOT/var/lib/fm-venvs/$key"
     mnt --bind "$ROOT/var/lib/fm-venvs/$key" "$ROOT$REPO/.venv"
   fi

@@ -21,7 +21,7 @@ from mpi4py import MPI
 
 from fenicsx_mortar import load_scene, solve
 from fenicsx_mortar import _dolfinx as dx
-from fenicsx_mortar.checkpoint import _owned_nodes
+from fenicsx_mortar.io.checkpoint import _owned_nodes
 
 comm = MPI.COMM_WORLD
 

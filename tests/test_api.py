@@ -18,9 +18,9 @@ import fenicsx_mortar as fm
 from conftest import ROOT
 from fenicsx_mortar import _dolfinx as dx
 from fenicsx_mortar import load_scene
-from fenicsx_mortar.bulk import build_bulk
-from fenicsx_mortar.meshing import build_domain
-from fenicsx_mortar.run import scene_pairs
+from fenicsx_mortar.scene.bulk import build_bulk
+from fenicsx_mortar.scene.meshing import build_domain
+from fenicsx_mortar.scene.runner import scene_pairs
 
 
 @pytest.fixture(scope="module")
@@ -280,3 +280,52 @@ def test_the_library_api_is_listed():
     names = set(dir(fm))
     assert {"ContactPair", "ContactProblem", "LoadStepper", "SolverSettings"} <= names
     assert set(fm.__all__) <= names
+
+
+def test_the_command_line_reaches_the_solver_under_its_prefix(tmp_path):
+    """A script that hands PETSc its command line (``petsc4py.init(sys.argv)``, PETSc's
+    way) steers the solver with ``-<prefix>...`` options."""
+    import subprocess
+    import sys
+    script = tmp_path / "script.py"
+    script.write_text(
+        "import sys\nimport petsc4py\npetsc4py.init(sys.argv)\n"
+        "from conftest import ROOT\n"
+        "import fenicsx_mortar as fm\nfrom fenicsx_mortar import load_scene\n"
+        "from fenicsx_mortar.scene.bulk import build_bulk\n"
+        "from fenicsx_mortar.scene.meshing import build_domain\n"
+        "from fenicsx_mortar.scene.runner import scene_pairs\n"
+        "scene = load_scene(ROOT / 'tests/bad_input/_base.toml')\n"
+        "dom = build_domain(scene)\nbulk = build_bulk(scene, dom)\n"
+        "pairs = scene_pairs(scene, dom, bulk.V)\n"
+        "p = fm.ContactProblem(bulk.residual, bulk.u, bulk.bcs, pairs, bulk.jacobian,\n"
+        "                      petsc_options_prefix='cl_')\n"
+        "bulk.set_time(0.5)\nprint('REASON', p.solve().reason)\n")
+    env = {"PYTHONPATH": f"{ROOT / 'tests'}:{ROOT}"}
+    import os
+    proc = subprocess.run([sys.executable, str(script), "-cl_snes_max_it", "1"],
+                          capture_output=True, text=True, env={**os.environ, **env},
+                          timeout=300)
+    assert "REASON Newton failed: DIVERGED_MAX_IT after 1 iterations" in proc.stdout, \
+        proc.stdout[-2000:] + proc.stderr[-2000:]
+
+
+def test_two_supports_with_two_values_for_one_dof_are_refused():
+    """Two conditions sharing the corner (0, 0): y = 0 on the bottom and y = 0.1 on the
+    left side. DOLFINx would apply one silently; the solve refuses, naming both."""
+    msh = dx.unit_square(MPI.COMM_WORLD, 2, 2)
+    V = dx.vector_space(msh)
+    u, v = dx.Function(V), ufl.TestFunction(V)
+    F = ufl.inner(ufl.grad(u), ufl.grad(v)) * ufl.dx(domain=msh)
+    bottom = dx.locate_vertices(msh, lambda X: np.isclose(X[1], 0.0))
+    left = dx.locate_vertices(msh, lambda X: np.isclose(X[0], 0.0))
+    zero, lift = dx.constant(msh, 0.0), dx.constant(msh, 0.1)
+    bcs = [dx.dirichletbc(zero, dx.vertex_dofs(V, 1, bottom), V, 1),
+           dx.dirichletbc(zero, dx.vertex_dofs(V, 0, left), V, 0),
+           dx.dirichletbc(lift, dx.vertex_dofs(V, 1, left), V, 1)]
+    with fm.ContactProblem(F, u, bcs, petsc_options_prefix="bc_") as problem:
+        with pytest.raises(ValueError, match=r"bcs\[0\] and bcs\[2\] prescribe different "
+                                             r"values, 0 and 0.1, to the y component at \(0, 0\)"):
+            problem.solve()
+        lift.value = 0.0                 # one value again: solves
+        assert problem.solve().converged

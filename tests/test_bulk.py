@@ -10,7 +10,7 @@ from scipy.optimize import fsolve
 
 from fenicsx_mortar import (Body, Dirichlet, Material, MeshSource, Pressure, Scene,
                             SolverSettings, Steps, solve)
-from fenicsx_mortar.materials import lame
+from fenicsx_mortar.scene.materials import lame
 
 E, NU, P = 1000.0, 0.3, 150.0
 

@@ -176,3 +176,19 @@ def test_two_sided_hermite_meets_issue_17(material):
     m = run(0, v.name, material)
     assert m["active"] == m["nodes"]
     assert m["max"] <= ci.CRITERION
+
+
+def test_two_sided_bspline_master_on_the_arcs_of_issue_31():
+    """Issue 31: 24 slave against 17 master segments, a B-spline master and a Hermite slave:
+    max |p/p − 1| ≤ 1 % and a flat interior (the B-spline's end segments as accurate as its
+    interior; with its earlier not-a-knot ends the 2nd and 3rd nodes from each end swung by
+    1.05 % of p: −0.15 %, +0.90 %)."""
+    v = _variant("bspline, two-sided (hermite slave)")
+    if not ci.available(v):
+        pytest.skip(f"two-sided smoothing not available: {ci.refusal(v)}")
+    rec = ci.run_case(dict(key="L0 linear 24x17", level=0, material="linear",
+                           variant=tuple(v), arcs=(24, 17)))
+    assert rec["converged"], rec["message"]
+    m = ci.measures(rec)
+    assert m["active"] == m["nodes"] == 25
+    assert m["max"] <= ci.CRITERION and m["spread"] <= 0.002

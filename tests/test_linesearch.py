@@ -5,7 +5,9 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
+from fenicsx_mortar import _dolfinx as dx
 from fenicsx_mortar.linesearch import FullStepOrSecant
+from fenicsx_mortar.petsc_options import line_search_options as _line_search_options
 
 
 def arctan_system(x):
@@ -73,7 +75,7 @@ def newton(x0, line_search: str, accept: float | None = None, system=arctan_syst
     prefix = f"ls{id(snes)}_"
     snes.setOptionsPrefix(prefix)
     keys = {"snes_type": "newtonls", "ksp_type": "preonly", "pc_type": "lu",
-            "snes_linesearch_type": "basic" if line_search == "l2-full" else line_search,
+            **_line_search_options(line_search),    # l2: PETSc >= 3.24's secant
             "snes_atol": atol, "snes_rtol": 1e-14, "snes_max_it": 40}
     for k, v in keys.items():
         opts[prefix + k] = v
@@ -96,14 +98,21 @@ def test_full_newton_diverges_here():
 
 def test_without_full_steps_it_is_petsc_l2():
     """With the full step never accepted the iterates are PETSc l2's, to the last bit (the
-    same three points and the same secant formula)."""
+    same three points and the same secant formula; PETSc >= 3.24: its secant search, until
+    round-off)."""
     r1, ours, _, scaled = newton([2.0, 3.0], "l2-full", accept=0.0)
     r2, petsc, *_ = newton([2.0, 3.0], "l2")
     assert all(scaled)
     assert r1 > 0 and r2 > 0
     assert len(ours) == len(petsc)
+    # PETSc >= 3.24's secant (l2 renamed) arranges the same formula otherwise: the last bit
+    # differs once the residual is at round-off level (the step from 7e-6 to 1e-11 here)
+    exact = dx.LINE_SEARCH_SECANT == "l2"
     for (xa, na), (xb, nb) in zip(ours, petsc):
-        assert np.array_equal(xa, xb) and na == nb
+        if exact or min(na, nb) > 1e-5:
+            assert np.array_equal(xa, xb) and na == nb
+        else:
+            assert np.abs(xa - xb).max() < 1e-9 and abs(na - nb) < 1e-9
 
 
 @pytest.mark.parametrize("x0", [[1.5, 2.0], [2.0, 3.0], [-1.8, 0.2]])

@@ -1,8 +1,8 @@
-"""The checks of a mesh file's cells and names (fenicsx_mortar.meshing)."""
+"""The checks of a mesh file's cells and names (fenicsx_mortar.scene.meshing)."""
 import numpy as np
 import pytest
 
-from fenicsx_mortar.meshing import _check_areas, _check_names
+from fenicsx_mortar.scene.meshing import _check_areas, _check_names
 from fenicsx_mortar.scene import SceneError
 
 SQUARE = np.array([[0, 1, 2, 3]])

@@ -1,7 +1,9 @@
 """MPI runs equal the serial one: the bulk is distributed by DOLFINx, contact surfaces are
 cut across ranks (each rank integrates the slave segments of the nodes it owns).
 
-For each scene the serial run and the runs under ``mpirun -n N`` are compared step by step:
+For each scene the serial run and the runs on N ranks (``mpirun -n N`` with Open MPI, the
+venv's ``mpiexec -n N`` with PyPI's MPICH: fenicsx_mortar/mpi_launch.py) are compared step
+by step:
 nodal displacement (node by node, by mesh-file number: a coordinate sort would swap the
 coincident nodes of two touching bodies), contact pressure (and, with friction, tangential
 traction and stick/slip status) per slave node, the step records that summary.json holds
@@ -24,7 +26,7 @@ import sys
 import numpy as np
 import pytest
 
-from conftest import MPI_ENV, ROOT, run_python
+from conftest import MPI_ENV, ROOT, mpi_command, run_python
 
 pytestmark = pytest.mark.mpi
 
@@ -255,11 +257,10 @@ def test_cli_outputs(scene, ranks, runs, tmp_path):
     runs(1)  # writes the edited scene files and the serial results
     folder = runs.base
     out = tmp_path / "out"
-    # 20 s: the run takes ~6 s; the hang below is cut by timeout (SIGTERM, mpirun ends
-    # its ranks)
-    cmd = ["timeout", "-k", "5", "20", "mpirun", "-n", str(ranks), "--oversubscribe",
-           sys.executable, "-m", "fenicsx_mortar", "run", str(folder / f"{scene}.toml"),
-           "--out", str(out)]
+    # 20 s: the run takes ~6 s; the hang below is cut by timeout (SIGTERM, the launcher
+    # ends its ranks)
+    cmd = ["timeout", "-k", "5", "20", *mpi_command(ranks), sys.executable, "-m",
+           "fenicsx_mortar", "run", str(folder / f"{scene}.toml"), "--out", str(out)]
     proc = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT,
                           env={**os.environ, **MPI_ENV})
     assert proc.returncode == 0, f"exit {proc.returncode}: " + proc.stderr[-2000:]
@@ -280,3 +281,18 @@ def test_cli_outputs(scene, ranks, runs, tmp_path):
         diff.close("displacement", a["u"][-1], ck["u"], np.abs(a["u"][-1]).max())
     assert not diff.mismatch, "; ".join(diff.mismatch[:8])
     assert max(diff.worst.values()) <= 1e-8, diff.worst
+
+
+def test_the_launcher_starts_the_ranks_of_this_python():
+    # Open MPI's mpirun or the venv's MPICH mpiexec, whichever this Python's mpi4py uses:
+    # every rank must see the same world of 3 (a launcher of the other MPI starts 3
+    # singletons that each see a world of 1)
+    # (rank 0 prints what every rank saw: three ranks writing at once interleave)
+    proc = run_python([sys.executable, "-c", "from mpi4py import MPI; c = MPI.COMM_WORLD; "
+                       "seen = c.gather((c.rank, c.size)); "
+                       "print(sorted(seen) if c.rank == 0 else '', end='')"],
+                      ranks=3, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert proc.stdout.strip() == "[(0, 3), (1, 3), (2, 3)]", proc.stdout
+    with pytest.raises(ValueError, match="ranks: a positive whole number"):
+        mpi_command(0)

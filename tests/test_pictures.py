@@ -1,10 +1,10 @@
-"""fenicsx_mortar.pictures: snapshots of a solved state, save/load, PNG and GIF output."""
+"""fenicsx_mortar.io.pictures: snapshots of a solved state, save/load, PNG and GIF output."""
 import numpy as np
 import pytest
 
 from conftest import ROOT
 from fenicsx_mortar import load_scene, solve
-from fenicsx_mortar.pictures import (Snapshot, animation_gif, frames_png, load_snapshots,
+from fenicsx_mortar.io.pictures import (Snapshot, animation_gif, frames_png, load_snapshots,
                                      pressure_scale, save_snapshots, snapshot, von_mises)
 
 

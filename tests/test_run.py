@@ -66,7 +66,7 @@ def test_clearing_a_previous_run_stays_inside_out(tmp_path):
     """Only the previous run's own files go: through a symbolic link named interface/
     nothing is removed, and in interface/ only the files of the pairs its scene.json
     names."""
-    from fenicsx_mortar.output import clear_previous
+    from fenicsx_mortar.io.output import clear_previous
     out, elsewhere = tmp_path / "out", tmp_path / "elsewhere"
     out.mkdir()
     elsewhere.mkdir()

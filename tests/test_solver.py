@@ -121,8 +121,8 @@ def test_a_displacement_far_beyond_the_mesh_is_not_a_solution():
     displacement of more than FLOWN_OFF mesh diameters, and only that."""
     from fenicsx_mortar import load_scene
     from fenicsx_mortar.acceptance import FLOWN_OFF, Acceptance
-    from fenicsx_mortar.bulk import build_bulk
-    from fenicsx_mortar.meshing import build_domain
+    from fenicsx_mortar.scene.bulk import build_bulk
+    from fenicsx_mortar.scene.meshing import build_domain
     from conftest import ROOT
 
     scene = load_scene(ROOT / "tests/bad_input/_base.toml")
@@ -144,8 +144,8 @@ def test_a_cell_inverted_only_at_a_corner_is_not_a_solution(a, inverted):
     import numpy as np
     from fenicsx_mortar import load_scene
     from fenicsx_mortar.acceptance import Acceptance
-    from fenicsx_mortar.bulk import build_bulk
-    from fenicsx_mortar.meshing import build_domain
+    from fenicsx_mortar.scene.bulk import build_bulk
+    from fenicsx_mortar.scene.meshing import build_domain
     from conftest import ROOT
 
     scene = load_scene(ROOT / "tests/bad_input/_base.toml")

@@ -3,7 +3,8 @@
 This module is the reference shape: ``fenicsx_mortar/_dolfinx.py`` is written against these
 functions, and every other generation (``v0_5.py``) gives the same functions with the same
 arguments and results. Each function is one DOLFINx call, or the few lines that one call
-became; "0.10:" notes say what the next generation changes (docs/dolfinx-versions.md).
+became; "0.10:"/"0.11:" notes say what those generations change (``v0_10.py``,
+``v0_11.py``, docs/dolfinx-versions.md).
 Nothing here runs at import time, so every generation's module imports on any DOLFINx
 (tests/test_dolfinx_layer.py compares them).
 """
@@ -32,7 +33,8 @@ def petsc_vec(u):
 
 def geometry_dofmap(msh) -> np.ndarray:
     """(num_cells, nodes_per_cell) int32 geometry node indices of every local cell (owned,
-    then ghosts). 0.11: ``geometry.dofmap`` is deprecated for ``geometry.dofmaps(0)``."""
+    then ghosts). 0.11: ``geometry.dofmap`` is deprecated for ``geometry.dofmaps[0]`` (a
+    list property)."""
     return msh.geometry.dofmap
 
 

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
+from mpi4py import MPI  # noqa: F401  (before petsc4py: the PyPI wheel needs it)
 from petsc4py import PETSc
 
 from .kernel import NodalContributions
@@ -317,26 +318,34 @@ def pressure_rows(st, dp_dg: np.ndarray, dp_dA: np.ndarray) -> sp.csr_matrix:
     return sp.csr_matrix(st.to_nodes(K=rows, rows_in_nodes=True))
 
 
-def friction_terms(slip: NodalContributions, t: np.ndarray, dt_dg: np.ndarray,
-                   dt_dp: np.ndarray, A: np.ndarray, g: np.ndarray, active: np.ndarray,
-                   G: sp.spmatrix, GA: sp.spmatrix, epsilon: np.ndarray, n_slave: int,
-                   n_coords: int, weight: np.ndarray, tangent: bool = True,
-                   lay: Layouts = _shared):
-    """Tangential terms (friction.py): R_T = Σ_j A_j t_j ∇g_T,j and
+def friction_terms(st, slip: NodalContributions, t: np.ndarray, dt_dg: np.ndarray,
+                   dt_dp: np.ndarray, weight: np.ndarray, tangent: bool = True):
+    """Tangential terms (friction.py) of the state ``st``: R_T = Σ_j W_j t_j ∇g_T,j and
 
-        K_T = Σ_j A_j ∂t/∂g_T ∇g_T⊗∇g_T + A_j t_j ∇²g_T + t_j ∇g_T⊗∇A_j
-                  + A_j ∂t/∂p ∇g_T⊗∇p_j ,   ∇p_j = −ε (∇g̃_j/A_j − g̃_j ∇A_j/A_j²)."""
+        K_T = Σ_j W_j ∂t/∂g_T ∇g_T⊗∇g_T + W_j t_j ∇²g_T + t_j ∇g_T⊗∇W_j
+                  + W_j ∂t/∂p ∇g_T⊗∇p_j ,   ∇p_j = ∂p/∂g̃ ∇g̃_j + ∂p/∂A ∇A_j
+
+    with W_j the load area of node j's pressure (``st.tangential.load``: ∫ψ_j, the nodal
+    area A_j but for the dual basis on partly supported segments) and the enforcement's own
+    ∂p/∂g̃, ∂p/∂A (``st.law``) on its active nodes, so any nodal law (not only
+    ⟨p̂ − ε g̃/A⟩₊) gets its exact friction tangent.
+
+    Returns:
+        (R_T, K_T) over the kernels' coordinates (K_T None unless ``tangent``).
+    """
+    n_slave, n_coords, lay = st.n_slave, st.n_coords, st.layouts
+    W, GW = st.tangential.load, st.tangential.load_rows
     GT = gradient_matrix(slip, n_slave, n_coords, lay)
-    R = GT.T @ (A * t * weight)
+    R = GT.T @ (W * t * weight)
     if not tangent:
         return R, None
-    As = np.where(A > 0, A, 1.0)
-    act = active * weight
-    Gp = -(sp.diags(epsilon * act / As) @ G - sp.diags(epsilon * act * g / As**2) @ GA)
-    K = (GT.T @ sp.diags(A * dt_dg * weight) @ GT
-         + hessian_sum(slip, A * t * weight, n_slave, n_coords, lay)
-         + GT.T @ sp.diags(t * weight) @ GA
-         + GT.T @ sp.diags(A * dt_dp * weight) @ Gp)
+    act = st.active * weight
+    law = st.law
+    Gp = sp.diags(law.dp_dg * act) @ st.G + sp.diags(law.dp_dA * act) @ st.G_area
+    K = (GT.T @ sp.diags(W * dt_dg * weight) @ GT
+         + hessian_sum(slip, W * t * weight, n_slave, n_coords, lay)
+         + GT.T @ sp.diags(t * weight) @ GW()
+         + GT.T @ sp.diags(W * dt_dp * weight) @ Gp)
     return R, K
 
 

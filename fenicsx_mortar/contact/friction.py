@@ -11,13 +11,19 @@ master, carried between load steps:
     stick (Φ ≤ 0): t_j = t*_j ;   slip (Φ > 0): t_j = μ p_j sign(t*_j)
 
 (p_j ≥ 0 the normal contact pressure). The tangential nodal forces are the variation of
-Σ_j A_j t_j g_T,j at fixed t (A_j the nodal area), R_T = Σ_j A_j t_j ∇g_T,j, with the
-consistent, unsymmetric tangent through ∇g_T, ∇²g_T, ∇A and (slip) ∇p.
+Σ_j W_j t_j g_T,j at fixed t (W_j the load area of node j's pressure, :func:`load_areas`),
+R_T = Σ_j W_j t_j ∇g_T,j, with the consistent, unsymmetric tangent through ∇g_T, ∇²g_T,
+∇W and (slip) ∇p, ∇p from the enforcement's own ∂p/∂g̃, ∂p/∂A.
 
-Moving cone: after a converged step, a sticking node keeps its reference point; a slipping
-node's reference moves to the point that leaves exactly the elastic part t_j/ε_T of the
-slip, x_ref = x_m(ξ̄_j) − (t_j/ε_T) t̂; a node out of contact re-anchors at its current
-projection, so a node that lifts off and comes back starts from rest.
+Where the enforcement carries a tangential multiplier (λ_t with Lagrange multipliers, the
+Uzawa t̂ with ``alm-stick``) the trial is that multiplier + ε_T g_T with g_T the slip of
+the step (every node re-anchored at the step's end), and stick is exact; a node that
+closes during the step has a penalty-regularized stick in that step (:meth:`Coulomb.update`).
+
+Moving cone (penalty, ``alm``): after a converged step, a sticking node keeps its reference
+point; a slipping node's reference moves to the point that leaves exactly the elastic part
+t_j/ε_T of the slip, x_ref = x_m(ξ̄_j) − (t_j/ε_T) t̂; a node out of contact re-anchors at
+its current projection, so a node that lifts off and comes back starts from rest.
 
 A new law with the same kinematics is a subclass of :class:`Coulomb` with its own
 :meth:`~Coulomb.traction` (the return map), registered under its name.
@@ -35,7 +41,8 @@ from .kernel import NodalContributions, nodal_sum
 from .projection import closest_segments
 from .registry import FRICTION_LAWS
 
-STICK, SLIP, INACTIVE = 1, 2, 0
+#: node status; CLOSING: closed during the step, not slipping: penalty stick (update)
+STICK, SLIP, INACTIVE, CLOSING = 1, 2, 0, 3
 
 
 def slip_contributions(xs: np.ndarray, xm: np.ndarray, curve, nodes: np.ndarray,
@@ -81,6 +88,37 @@ def slip_direction(curve, seg, xi, P, a):
     return ad.unit(a)
 
 
+def load_areas(st, surface) -> tuple[np.ndarray, object]:
+    """W_j = ∫ψ_j dΓ over the part of node j's support that sees the master (ψ_j the
+    weight of its pressure: its normal force is p_j W_j) and a callable for the rows ∇W_j.
+    W = A but for the dual basis where a segment is only partly supported: there the
+    friction force weighted by A_j made T ≠ μN at the master's end with every node slipping
+    (B3: 0.297–0.303). Where W_j ≤ 0 (a weak node no neighbour took) A_j stands in: a
+    friction force against the slip would push."""
+    area = st.area
+    if area.psi is None:     # standard basis (or no contribution on this rank): W = A
+        W, contrib = surface.owned_sum(nodal_sum(area, surface.n)), area
+    else:
+        # the dual basis' ψ are fixed combinations of the hats on a segment (node-a and
+        # node-b rows in halves), their gradients the same combinations
+        K = area.size // 2
+        g = area.grad.reshape(2, K, -1)
+        contrib = NodalContributions(area.node, area.slave_nodes, area.master_nodes,
+                                     area.psi, np.concatenate([2 * g[0] - g[1], 2 * g[1] - g[0]]),
+                                     None, area.tail_nodes)
+        W = surface.owned_sum(nodal_sum(contrib, surface.n))
+    ok = (W > 0) | (st.A <= 0)
+    if not ok.all():
+        W = np.where(ok, W, st.A)
+
+    def rows() -> sp.csr_matrix:
+        G = assembly.gradient_matrix(contrib, st.n_slave, st.n_coords, st.layouts)
+        if contrib is area:
+            return G
+        return sp.csr_matrix(sp.diags(ok * 1.0) @ G + sp.diags(~ok * 1.0) @ st.G_area)
+    return W, rows
+
+
 class TangentialState(NamedTuple):
     """The friction part of a :class:`~.state.ContactState`."""
 
@@ -92,6 +130,15 @@ class TangentialState(NamedTuple):
     dt_dp: np.ndarray          # ∂t/∂p
     proj: tuple                # (nodes, segments, ξ̄, |a|) of the slave nodes' projections
     dt_dtrial: np.ndarray      # ∂t/∂(trial traction): ∂t/∂λ_t with multipliers
+    #: W_j, the load area of node j's pressure (∫ψ_j over the supported part: its normal
+    #: force is p_j W_j), which weighs its tangential force W_j t_j; and a callable giving
+    #: the rows ∇W_j over the kernels' coordinates
+    load: np.ndarray | None = None
+    load_rows: object = None
+    #: |t − T(t + ε_T g_T)| per node (T the return map, ε_T the law's fixed one), beyond
+    #: round-off: zero iff the law holds (stick: no slip; slip: on the cone, along the
+    #: slip). None where the traction is not augmented (penalty: the moving cone)
+    kkt: np.ndarray | None = None
 
 
 @FRICTION_LAWS.register("none")
@@ -109,7 +156,7 @@ class Frictionless:
     def residual(self, st, weight: np.ndarray):
         return None
 
-    def tangent(self, st, weight: np.ndarray, epsilon: np.ndarray):
+    def tangent(self, st, weight: np.ndarray):
         return None
 
     def decision(self, st) -> np.ndarray | int:
@@ -153,6 +200,7 @@ class Coulomb(Frictionless):
         self._segment = np.full(n_slave, -1, dtype=np.int64)  # last projection segment
         self._status = np.full(n_slave, INACTIVE)   # each node's status at the last step
         self._g0 = np.zeros(n_slave)                 # g_T at the anchor (multipliers)
+        self._open: np.ndarray | None = None         # out of contact at the step's start
 
     # -- kinematics ---------------------------------------------------------------------
     def update(self, st, surface) -> None:
@@ -172,20 +220,76 @@ class Coulomb(Frictionless):
                                   self.ref_xi[nodes])
         gT = surface.owned_sum(nodal_sum(slip, surface.n))
         self._surface = surface
-        if st.multipliers is not None:
-            # λ_t carries the traction; g_T is the slip since the last step's end (from where
-            # the anchoring left it: see accept)
+        eps = self.epsilon_t if st.epsilon_t is None else st.epsilon_t
+        # a trial traction within round-off of the cone's tip is no slip (traction)
+        self.resolution = eps * st.gap_resolution
+        hat = st.traction_multiplier
+        if hat is not None:
+            # λ_t (or the Uzawa t̂) carries the traction; g_T is the slip since the last
+            # step's end (from where the anchoring left it: see accept)
             gT = gT - self._g0
-            trial = st.multipliers[:, 1] + self.epsilon_t * gT
-        else:
-            trial = self.epsilon_t * gT
+        first = self._open is None   # the first iterate of the step: its start
+        if first:
+            self._open = ~st.active
+        trial = eps * gT if hat is None else hat + eps * gT
         t, status, dt_dtrial, dt_dp = self.traction(trial, st.p, st.active)
-        if st.multipliers is not None:
+        if first and not st.active.any():
+            # with no node in contact at the step's start, nodes that nearly touch stick at
+            # its first iterate (t = trial, zero there), as they get the normal stiffness in
+            # its Jacobian (enforcement.Enforcement.tangent): an exactly touching start on a
+            # curved master may have no node within round-off of closed (g̃/A = h²/3R with
+            # the standard basis), and then nothing held a body along x that friction alone
+            # holds: the first Newton step moved it sideways, every node then slipped as it
+            # closed, and the body was thrown out of contact (CM at a/40, 'alm-stick'). (With
+            # nodes in contact it cost iterations: B3 with a finer master 4 → 5-7 a step)
+            held = (st.A > 0) & (st.g <= 0.01 * st.A**2)
+            t = np.where(held, trial, t)
+            dt_dtrial = np.where(held, 1.0, dt_dtrial)
+            status = np.where(held, STICK, status)
+        if hat is not None:
             t, status, dt_dtrial, dt_dp = self._on_the_cone(trial, st.p, t, status,
                                                             dt_dtrial, dt_dp)
+        if st.held_status is not None:
+            # the Uzawa update t̂ ← t doubles a sticking node's trial at the next solve's
+            # first iterate (its elastic slip is still there): taken for a slip there, a
+            # stick zone near the cone slid away whole (Cattaneo-Mindlin at Q = 0.9 mu P
+            # ended in a sliding state). The status it converged to decides that iterate
+            held = (st.held_status == STICK) & (status == SLIP)
+            t = np.where(held, trial, t)
+            dt_dtrial = np.where(held, 1.0, dt_dtrial)
+            dt_dp = np.where(held, 0.0, dt_dp)
+            status = np.where(held, STICK, status)
+        dt_dg = eps * dt_dtrial
+        # a node that closes during the step was anchored at the step's start, its gap
+        # open: the relative motion of its approach is no slip (on a curved master its
+        # closest point also drifts as the gap shrinks). Held by exact stick to that anchor
+        # (multipliers, Uzawa) it kept a tangential traction of up to 0.25 mu p0 after a
+        # press where the continuum has none. In its closing step its stick is
+        # penalty-regularized (t = ε_T g_T, the law's ε_T, no multiplier: the approach
+        # becomes elastic slip); from the next step it sticks exactly to where it closed
+        # (accept re-anchors it). A node that slides into contact slips as before. (The
+        # penalty law's stick is regularized anyway.)
+        closing = self._open & st.active & (hat is not None)
+        if closing.any():
+            tc, sc, dc, pc = self.traction(self.epsilon_t * gT, st.p, st.active)
+            t = np.where(closing, tc, t)
+            status = np.where(closing & (sc == STICK), CLOSING, np.where(closing, sc, status))
+            dt_dg = np.where(closing, self.epsilon_t * dc, dt_dg)
+            dt_dtrial = np.where(closing, 0.0, dt_dtrial)
+            dt_dp = np.where(closing, pc, dt_dp)
+        kkt = None
+        if hat is not None:
+            e0 = self.epsilon_t
+            kkt = np.abs(t - self.traction(t + e0 * gT, st.p, st.active)[0])
+            # round-off and the Newton tolerance as for the normal part (a slip's force is
+            # A ε_T g_T where the gap's is ε g̃: the same noise, ε_T = ε)
+            kkt = np.where(closing, 0.0, np.maximum(
+                kkt - e0 * (st.gap_resolution + st.gap_noise), 0.0))
         _, a = curve.evaluate(segs, xi, P)
-        st.tangential = TangentialState(slip, gT, t, status, self.epsilon_t * dt_dtrial,
-                                        dt_dp, (nodes, segs, xi, np.hypot(*a)), dt_dtrial)
+        W, rows = load_areas(st, surface)
+        st.tangential = TangentialState(slip, gT, t, status, dt_dg,
+                                        dt_dp, (nodes, segs, xi, np.hypot(*a)), dt_dtrial,
+                                        W, rows, kkt)
 
     def anchor_missing(self, nodes: np.ndarray, seg: np.ndarray, xi: np.ndarray) -> None:
         """Nodes without a reference (first contact) take their current projection."""
@@ -197,17 +301,22 @@ class Coulomb(Frictionless):
         """The return map of the trial traction (ε_T g_T, plus λ_t with multipliers):
         (t, status, ∂t/∂trial, ∂t/∂p) per node."""
         # Φ ≤ 0 sticks, so a node at rest (g_T = 0, p = 0: the first iterate of a body held
-        # only by contact) gets the tangential stiffness instead of none
+        # only by contact) gets the tangential stiffness instead of none; so does a node
+        # whose p and trial are zero to round-off (an exactly touching start: p = −7e-18
+        # and a round-off slip made it slip without stiffness, the Newton matrix singular
+        # along the slip, and the body was thrown out of contact)
         # a node the moving cone left exactly on the cone (every slipping node at the start
         # of a step) sticks: deciding that tie by round-off made the first Newton direction
         # (and the iteration count) differ between serial and MPI runs
         # with mu = 0 there is no cone to stick in: every active node slips with t = 0
-        slip = active & ((np.abs(trial) - self.mu * p > 1e-9 * self.mu * p) | (self.mu == 0.0))
+        r = self.mu * np.maximum(p, 0.0)
+        noise = getattr(self, "resolution", 0.0)
+        slip = active & ((np.abs(trial) - r > 1e-9 * r + noise) | (self.mu == 0.0))
         stick = active & ~slip
         sign = np.sign(trial)
-        t = np.where(stick, trial, np.where(slip, self.mu * p * sign, 0.0))
+        t = np.where(stick, trial, np.where(slip, r * sign, 0.0))
         dt_dtrial = np.where(stick, 1.0, 0.0)
-        dt_dp = np.where(slip, self.mu * sign, 0.0)
+        dt_dp = np.where(slip & (p > 0), self.mu * sign, 0.0)
         status = np.where(stick, STICK, np.where(slip, SLIP, INACTIVE))
         return t, status, dt_dtrial, dt_dp
 
@@ -227,23 +336,21 @@ class Coulomb(Frictionless):
         return t, status, dt_dtrial, dt_dp
 
     # -- contributions --------------------------------------------------------------------
-    def _terms(self, st, weight: np.ndarray, epsilon, tangent: bool):
+    def _terms(self, st, weight: np.ndarray, tangent: bool):
         ts = st.tangential
-        return assembly.friction_terms(
-            ts.slip, ts.t, ts.dt_dg, ts.dt_dp, st.A, st.g, st.active, st.G, st.G_area,
-            epsilon, st.n_slave, st.n_coords, weight, tangent, st.layouts)
+        return assembly.friction_terms(st, ts.slip, ts.t, ts.dt_dg, ts.dt_dp, weight, tangent)
 
     def residual(self, st, weight: np.ndarray) -> np.ndarray:
-        return st.to_nodes(self._terms(st, weight, None, tangent=False)[0])
+        return st.to_nodes(self._terms(st, weight, tangent=False)[0])
 
-    def tangent(self, st, weight: np.ndarray, epsilon: np.ndarray) -> sp.spmatrix:
-        K = st.to_nodes(K=self._terms(st, weight, epsilon, tangent=True)[1])
+    def tangent(self, st, weight: np.ndarray) -> sp.spmatrix:
+        K = st.to_nodes(K=self._terms(st, weight, tangent=True)[1])
         if st.multipliers is None:
             return K
         # with multipliers (docs/design.md §5a): C_t = s (λ_t − t), t(λ_t + ε_T g_T, p(λ_n))
         ts, n = st.tangential, st.n_slave
         act = st.active * weight
-        A = st.A
+        A = ts.load
         GT = sp.csr_matrix(st.to_nodes(K=assembly.gradient_matrix(
             ts.slip, n, st.n_coords, st.layouts), rows_in_nodes=True))       # (n, n_test)
         Gp = assembly.pressure_rows(st, st.law.dp_dg * act, st.law.dp_dA * act)
@@ -267,7 +374,8 @@ class Coulomb(Frictionless):
     # -- outputs ------------------------------------------------------------------------
     def interface(self, st) -> dict[str, np.ndarray]:
         ts = st.tangential
-        names = {STICK: "stick", SLIP: "slip", INACTIVE: "inactive"}
+        # a node closing in the step sticks (penalty-regularized): reported as sticking
+        names = {STICK: "stick", SLIP: "slip", INACTIVE: "inactive", CLOSING: "stick"}
         return dict(t_tangential=ts.t, slip=ts.gT,
                     status=np.array([names[int(k)] for k in ts.status]))
 
@@ -275,8 +383,8 @@ class Coulomb(Frictionless):
         ts = st.tangential
         return {"tangential_force_on_slave": [float(-tangential_on_slave[0]),
                                               float(-tangential_on_slave[1])],
-                "tangential_force": float(np.sum(ts.t * st.A)),
-                "stick_nodes": int(np.sum(ts.status == STICK)),
+                "tangential_force": float(np.sum(ts.t * ts.load)),
+                "stick_nodes": int(np.sum((ts.status == STICK) | (ts.status == CLOSING))),
                 "slip_nodes": int(np.sum(ts.status == SLIP))}
 
     # -- history --------------------------------------------------------------------------
@@ -286,7 +394,7 @@ class Coulomb(Frictionless):
         the step."""
         ts = st.tangential
         nodes, segs, xi, length = ts.proj
-        if st.multipliers is not None:
+        if st.traction_multiplier is not None:
             self.ref_seg[nodes], self.ref_xi[nodes] = segs, xi
             self._committed = (self.ref_seg.copy(), self.ref_xi.copy())
             self._status = ts.status.copy()
@@ -303,6 +411,8 @@ class Coulomb(Frictionless):
             return
         t, status = ts.t[nodes], ts.status[nodes]
         ref_seg, ref_xi = self.ref_seg.copy(), self.ref_xi.copy()
+        # a node that closed in the step keeps only its elastic slip t/ε_T, as a slipping
+        # one: its anchor moves to where it closed (_step_start)
         slipping = status == SLIP
         off = status == INACTIVE
         n = nodes[slipping | off]
@@ -313,15 +423,23 @@ class Coulomb(Frictionless):
         self.ref_seg, self.ref_xi = ref_seg, ref_xi
         self._committed = (ref_seg.copy(), ref_xi.copy())
 
+    def begin_step(self) -> None:
+        self._open = None   # taken from the step's first iterate: its start
+
     def reject(self) -> None:
         self.ref_seg, self.ref_xi = (a.copy() for a in self._committed)
 
     def state_dict(self) -> dict[str, np.ndarray]:
-        return {"ref_seg": self.ref_seg, "ref_xi": self.ref_xi}
+        return {"ref_seg": self.ref_seg, "ref_xi": self.ref_xi, "g0": self._g0,
+                "status": self._status}
 
     def load_state_dict(self, d: dict[str, np.ndarray]) -> None:
         self.ref_seg = np.array(d["ref_seg"], dtype=np.int64)
         self.ref_xi = np.array(d["ref_xi"], dtype=float)
+        # (checkpoints before these were kept start the step from g_T = 0 and no status)
+        self._g0 = np.array(d.get("g0", np.zeros_like(self.ref_xi)), dtype=float)
+        self._status = np.array(d.get("status", np.full(self.ref_seg.shape, INACTIVE)),
+                                dtype=self._status.dtype)
         # the loaded history becomes the committed one (reject() restores from it)
         self._committed = (self.ref_seg.copy(), self.ref_xi.copy())
         self.reject()

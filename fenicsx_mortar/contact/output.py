@@ -1,13 +1,10 @@
-"""Interface outputs of a contact pair: the nodal table along the slave surface, the step
-record (forces, active set, KKT residual), the per-step CSV file and the pressure plot."""
+"""What a contact pair reports: the nodal table along the slave surface and the step record
+(forces, active set, KKT residual). The files made of them are the scene layer's
+(interface_files.py)."""
 from __future__ import annotations
-
-from pathlib import Path
 
 import numpy as np
 from mpi4py import MPI
-
-from ..output import write_atomic
 
 
 def interface_table(pair) -> dict[str, np.ndarray]:
@@ -68,39 +65,3 @@ def pair_record(pair) -> dict:
         "epsilon": enf.epsilon0,
         "epsilon_max": float(enf.epsilon.max(initial=0.0)),
     }}
-
-
-def write_interface(pair, out: Path, step: int) -> None:
-    """``out/interface/<pair>_<step>.csv``: the :func:`interface_table` (rank 0 calls it)."""
-    d = interface_table(pair)
-    cols = tuple(d)
-    lines = [",".join(cols)]
-    for row in zip(*(d[c] for c in cols)):
-        lines.append(",".join(f"{v:.12g}" if isinstance(v, float) else str(v) for v in row))
-    write_atomic(out / "interface" / f"{pair.name}_{step:04d}.csv", "\n".join(lines) + "\n")
-
-
-def plot_pressure(pair, out: Path) -> None:
-    """``out/interface/<pair>_pressure.png``: nodal pressure at the last converged step."""
-    if pair.state is None:
-        return
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    d = interface_table(pair)
-    fig, ax = plt.subplots(figsize=(6, 3.5))
-    order = np.argsort(d["x"])
-    ax.plot(d["x"][order], d["pressure"][order], "o-", ms=3)
-    on = d["pressure"] > 0
-    if on.any():  # zoom on the contact zone
-        lo, hi = d["x"][on].min(), d["x"][on].max()
-        pad = max(0.5 * (hi - lo), 1e-12)
-        ax.set_xlim(lo - pad, hi + pad)
-    ax.set_xlabel("x (current configuration)")
-    ax.set_ylabel("contact pressure")
-    ax.set_title(f"{pair.name}: pressure at the last converged step")
-    ax.grid(alpha=0.3)
-    fig.tight_layout()
-    (out / "interface").mkdir(parents=True, exist_ok=True)
-    fig.savefig(out / "interface" / f"{pair.name}_pressure.png", dpi=120)
-    plt.close(fig)

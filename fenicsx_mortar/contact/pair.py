@@ -17,6 +17,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 from mpi4py import MPI
+from petsc4py import PETSc
 from scipy.spatial import cKDTree
 
 from .. import _dolfinx as dx
@@ -68,13 +69,15 @@ class ContactPair:
         ValueError: an argument out of its range or not among its choices, named.
     """
 
-    def __init__(self, V, facet_tags, slave: int | Sequence[int], master: int | Sequence[int],
+    def __init__(self, V: dx.FunctionSpace, facet_tags: dx.MeshTags, slave: int | Sequence[int],
+                 master: int | Sequence[int],
                  *, name: str = "contact", method: str = "mortar", smoothing: str = "none",
                  enforcement: str = "lagrange", epsilon: float | None = None,
                  tolerance: float = 1e-10, friction: str = "none", mu: float | None = None,
-                 E: float | Mapping[int, float] | None = None, cell_tags=None,
-                 n_gauss: int | None = None, search_radius: float | None = None,
-                 basis: str | None = None, slave_smoothing: str = "none"):
+                 E: float | Mapping[int, float] | None = None,
+                 cell_tags: dx.MeshTags | None = None, n_gauss: int | None = None,
+                 search_radius: float | None = None, basis: str | None = None,
+                 slave_smoothing: str = "none"):
         self.name = name
         _check_arguments(name, slave=slave, master=master, method=method,
                          smoothing=smoothing, enforcement=enforcement, friction=friction,
@@ -107,15 +110,15 @@ class ContactPair:
             raise ValueError(f"contact {name}: slave and master bound the same body (cell tag "
                              f"{s.body_tag}); self-contact is not supported: a contact pair "
                              "joins two bodies")
-        check_facing(name, self.slave, self.master)
-        check_overlap(name, self.slave, self.master)
+        _check_facing(name, self.slave, self.master)
+        _check_overlap(name, self.slave, self.master)
         if isinstance(E, Mapping):
             missing = sorted({s.body_tag, m.body_tag} - set(E))
             if missing:
                 raise ValueError(f"contact {name}: E has no value for the cell tag(s) "
                                  f"{missing} of the bodies the surfaces bound")
             E, E_master = E[s.body_tag], E[m.body_tag]
-            check_roles(name, s, m, E, E_master)
+            _check_roles(name, s, m, E, E_master)
             if getattr(ENFORCEMENTS[enforcement], "unknowns", 0):
                 # where ε only steers the active and stick/slip sets, the softer body's
                 # stiffness steers them best (ironing, a 10x stiffer slave: E_slave/h
@@ -177,6 +180,7 @@ class ContactPair:
 
     @property
     def path_dependent(self) -> bool:
+        """The answer depends on the load path (friction's history)."""
         return self.friction.path_dependent
 
     def _timed(self, phase: str):
@@ -185,8 +189,12 @@ class ContactPair:
         return self.timings(phase)
 
     # -- kinematics ---------------------------------------------------------------------
-    def update(self, u) -> None:
-        """The state at the displacement ``u`` (collective)."""
+    def update(self, u: "dx.Function") -> None:
+        """Make :attr:`state` the contact state at a displacement (collective).
+
+        Args:
+            u: The displacement Function of the pair's space.
+        """
         with self._timed("contact"):
             xs = self.slave.X + self.slave.displacement(u)
             xm = self.master.X + self.master.displacement(u)
@@ -204,8 +212,7 @@ class ContactPair:
             curve = self._curve.with_nodes(xm)
             gap, area, g, A = self.discretization.weighted_gaps(xs, xm, curve, pairs)
         st = ContactState(xs, xm, curve, pairs, gap, area, g, A, self.layouts)
-        if self.unknowns:
-            st.multipliers, st.multiplier_scale = self.enforcement.lam, self.enforcement.scale
+        self.enforcement.annotate(st)
         st.law = self.enforcement.pressure(g, A)
         self.friction.update(st, s)
         return st
@@ -213,14 +220,27 @@ class ContactPair:
     # -- residual and tangent -------------------------------------------------------------
     def nodal_forces(self, weight: np.ndarray | None = None) -> np.ndarray:
         """The contact residual over the stacked node coordinates [slave, master] (the
-        forces the bodies exert on the interface): normal, plus tangential with friction;
-        ``weight`` selects slave nodes (default: this rank's)."""
+        forces the bodies exert on the interface): normal, plus tangential with friction.
+
+        Args:
+            weight: Per slave node, the weight of its terms (default: 1 for the nodes this
+                rank owns, 0 for the others).
+
+        Returns:
+            (2 (n_slave + n_master),) forces, x and y per node.
+        """
         w = self.weight if weight is None else weight
         parts = [self.enforcement.residual(self.state, w),
                  self.friction.residual(self.state, w)]
         return _sum(parts)
 
-    def add_residual(self, b, bc_dofs) -> None:
+    def add_residual(self, b: "PETSc.Vec", bc_dofs: np.ndarray) -> None:
+        """Add this rank's contact terms to a residual vector.
+
+        Args:
+            b: The residual (the pair's global dof numbering; off-process entries are sent).
+            bc_dofs: Dirichlet dofs (their rows are replaced by the caller).
+        """
         f = self.nodal_forces()
         with self._timed("contact_insertion"):
             assembly.add_to_vector(b, self.dofs, f)
@@ -231,19 +251,31 @@ class ContactPair:
         the first call of a load step adds the touching nodes' stiffness."""
         st, w = self.state, self.weight
         K = _sum([self.enforcement.tangent(st, w, self._first_jacobian),
-                  self.friction.tangent(st, w, self.enforcement.epsilon)])
+                  self.friction.tangent(st, w)])
         self._first_jacobian = False
         return K
 
-    def add_jacobian(self, A, bc_dofs) -> None:
+    def add_jacobian(self, A: "PETSc.Mat", bc_dofs: np.ndarray) -> None:
+        """Add this rank's contact tangent to the Jacobian (Dirichlet rows and columns left
+        out, at the indices :meth:`attach` gave).
+
+        Args:
+            A: The Jacobian matrix.
+            bc_dofs: Dirichlet dofs (unused: the system's ``skip`` holds them globally).
+        """
         K = self.tangent()
         with self._timed("contact_insertion"):
             assembly.add_to_matrix(A, K, self.index, self.skip, self.n_global, self.layouts)
 
     def attach(self, index: np.ndarray, skip: np.ndarray, n_global: int) -> None:
-        """Where the pair's local unknowns — the stacked node coordinates [slave, master],
-        then its multipliers — sit in the global system (``index``), the global rows and
-        columns to leave out (Dirichlet), and the global size (:mod:`fenicsx_mortar.system`)."""
+        """Where the pair's terms go in the global system (called by :mod:`.system`).
+
+        Args:
+            index: Global index of each of the pair's local unknowns: the stacked node
+                coordinates [slave, master], then its multipliers.
+            skip: Global rows and columns to leave out (Dirichlet).
+            n_global: The global size.
+        """
         self.index, self.skip, self.n_global = index, skip, n_global
 
     # -- the pair's own unknowns (multipliers) ----------------------------------------------
@@ -252,6 +284,11 @@ class ContactPair:
         return self.enforcement.lam
 
     def set_multipliers(self, lam: np.ndarray) -> None:
+        """Set the pair's own unknowns.
+
+        Args:
+            lam: (n_slave, unknowns) values, the same on every rank.
+        """
         self.enforcement.lam = lam
 
     def multiplier_residual(self) -> np.ndarray:
@@ -259,8 +296,9 @@ class ContactPair:
         return self.enforcement.multiplier_residual(self.state, self.weight)
 
     def kkt_residual(self) -> float:
+        """The Alart–Curnier KKT residual of the state, relative to the pressure scale."""
         st = self.state
-        return self.enforcement.kkt_residual(st.g, st.A, st.p)
+        return self.enforcement.kkt_residual(st.g, st.A, st.p, st.tangential)
 
     def decision(self) -> np.ndarray | None:
         """What the semi-smooth Newton decides per slave node: 0 inactive, 1 active (plus,
@@ -272,13 +310,16 @@ class ContactPair:
 
     # -- step lifecycle -------------------------------------------------------------------
     def augment(self) -> bool:
+        """Between converged Newton solves: update the enforcement (Uzawa, ε continuation);
+        True when another solve is needed."""
         st = self.state
-        again = self.enforcement.augment(st.g, st.A, st.p)
+        again = self.enforcement.augment(st.g, st.A, st.p, st.tangential)
         if again:
             self.augmentations += 1
         return again
 
     def begin_step(self) -> None:
+        """Before the first Newton solve of a load step (or of a retry of one)."""
         self.enforcement.begin_step()
         self.friction.begin_step()
         self.augmentations = 0
@@ -316,10 +357,12 @@ class ContactPair:
                 "search_radius finds the contact")
 
     def accept_step(self) -> None:
+        """Commit the step's history (multipliers, friction reference points)."""
         self.enforcement.accept()
         self.friction.accept(self.state)
 
     def reject_step(self) -> None:
+        """Go back to the history of the last accepted step."""
         self.enforcement.reject()
         self.friction.reject()
 
@@ -333,6 +376,11 @@ class ContactPair:
         return d
 
     def load_state_dict(self, d: dict[str, np.ndarray]) -> None:
+        """Restore the history of :meth:`state_dict` (a checkpoint).
+
+        Args:
+            d: The arrays by name.
+        """
         self.enforcement.load_state_dict(d)
         self.discretization.load_state_dict(d)
         self.friction.load_state_dict(d)
@@ -479,7 +527,7 @@ def _check_numbers(name: str, *, epsilon, tolerance, mu, E, n_gauss, search_radi
         check_number("E", E, key + "E")
 
 
-def check_facing(name: str, slave: Surface, master: Surface) -> None:
+def _check_facing(name: str, slave: Surface, master: Surface) -> None:
     """Some slave segment must face its nearest master segment (outward normals within 60°
     of opposite): a pair that never faces is a mistake in the set-up, not a contact."""
     def mids_normals(s: Surface):
@@ -494,7 +542,7 @@ def check_facing(name: str, slave: Surface, master: Surface) -> None:
                          "other (their outward normals never oppose): check the tags")
 
 
-def check_overlap(name: str, slave: Surface, master: Surface) -> None:
+def _check_overlap(name: str, slave: Surface, master: Surface) -> None:
     """Warn when slave nodes start inside the master deeper than their element size
     (:func:`.crossing.initial_overlap`): the first step then often fails."""
     nodes, depth, size = crossing.initial_overlap(slave.X, slave.seg, master.X, master.seg)
@@ -508,7 +556,7 @@ def check_overlap(name: str, slave: Surface, master: Surface) -> None:
                       "than the overlap)", stacklevel=3)
 
 
-def check_roles(name: str, slave: Surface, master: Surface, E_s: float, E_m: float) -> None:
+def _check_roles(name: str, slave: Surface, master: Surface, E_s: float, E_m: float) -> None:
     """Warn when the slave is the stiffer body with the finer segments. The multipliers live
     on the slave nodes; the soft master must then meet more weighted-gap conditions than it
     has nodes in the contact zone, and the pressure dips or zig-zags (docs/stability.md,

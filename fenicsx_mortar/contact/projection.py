@@ -17,7 +17,8 @@ its power coefficients (:meth:`~.curves.MasterCurve.condition_polynomial`, value
 few array operations per iteration instead of the curve's jet-capable evaluation):
 
 1. bracketing: F at ``N_SAMPLES`` equidistant ξ of the window; among the sign changes
-   F > 0 → F ≤ 0 the one nearest to x_s is taken;
+   F > 0 → F ≤ 0 the one nearest to x_s is taken, of those reaching into ξ ∈ [0, 1] if
+   there are any;
 2. safeguarded Newton (Numerical Recipes' rtsafe): a Newton step that leaves the bracket or
    does not halve the step is replaced by bisection; the bracket shrinks every iteration,
    so at most ``MAX_ITER`` iterations are made (bisection alone reaches 1e-16 in 60);
@@ -100,10 +101,17 @@ def solve_on_segments(curve, seg_index, xs, P, window=WINDOW, n_samples: int = N
     x = curve.derivatives(seg, grid, P, 0)[0]
     d2 = np.broadcast_to((xs[0] - x[0]) ** 2 + (xs[1] - x[1]) ** 2, (n_samples,) + shape)
 
-    # 1. bracket: a decreasing sign change, the one nearest to x_s
+    # 1. bracket: a decreasing sign change, the one nearest to x_s among those that reach
+    # into the segment (ξ ∈ [0, 1]) if any: the extension of a strongly curved piece can
+    # come back nearer to x_s than the segment's own root (seen on a B-spline's end
+    # segment), but only a root on the segment is a closest point of it
     down = (F[:-1] > 0.0) & (F[1:] <= 0.0)
     score = np.where(down, np.minimum(d2[:-1], d2[1:]), np.inf)
-    k = np.argmin(score, axis=0)
+    ga = grid[:-1]
+    on_segment = (ga < 1.0) & (ga + (hi - lo) / (n_samples - 1) > 0.0)
+    k = np.argmin(np.where(on_segment, score, np.inf), axis=0)
+    inside = np.isfinite(np.take_along_axis(score, k[None], 0)[0])
+    k = np.where(inside, k, np.argmin(score, axis=0))
     has = np.isfinite(np.take_along_axis(score, k[None], 0)[0])
     a = np.take_along_axis(np.broadcast_to(grid, F.shape)[:-1], k[None], 0)[0].copy()
     b = a + (hi - lo) / (n_samples - 1)

@@ -37,6 +37,17 @@ class ContactState:
     multipliers: np.ndarray | None = None        # (n_slave, 2) λ_n, λ_t when unknowns
     multiplier_scale: np.ndarray | None = None   # s_j of the multiplier rows
     tangential: "TangentialState | None" = None  # friction
+    #: how the enforcement holds the tangential traction (:meth:`.enforcement.Enforcement.
+    #: annotate`): the multiplier in the friction law's trial (λ_t, or the Uzawa t̂), None
+    #: for a penalty-regularized stick; ``epsilon_t`` per node, None: the law's own
+    traction_multiplier: np.ndarray | None = None
+    epsilon_t: np.ndarray | None = None
+    #: the smallest average gap round-off in the coordinates can resolve (the enforcement's)
+    gap_resolution: float = 0.0
+    #: the friction statuses of the last Uzawa solve, at the next solve's first iterate
+    held_status: np.ndarray | None = None
+    #: per node, the gap Newton's residual tolerance leaves unresolved (the enforcement's)
+    gap_noise: np.ndarray | float = 0.0
 
     @property
     def n_slave(self) -> int:

@@ -10,11 +10,11 @@ import pytest
 
 from conftest import ROOT
 from fenicsx_mortar import load_scene
-from fenicsx_mortar.bulk import build_bulk
 from fenicsx_mortar.condensation import CondensedSystem
-from fenicsx_mortar.meshing import build_domain
 from fenicsx_mortar.problem import ContactProblem
-from fenicsx_mortar.run import scene_pairs
+from fenicsx_mortar.scene.bulk import build_bulk
+from fenicsx_mortar.scene.meshing import build_domain
+from fenicsx_mortar.scene.runner import scene_pairs
 from test_pair import assert_second_order, multiplier_state
 
 

@@ -74,6 +74,34 @@ def test_open_end_stencil_derivative_slots():
         assert np.all(c.hess[rows][:, 4 + 6:4 + 8, :] == 0.0)
 
 
+
+class _JetPolyline(Polyline):
+    """The polyline through the general jet path (the kernel's closed form serves only the
+    Polyline class itself)."""
+
+
+@pytest.mark.parametrize("config", [curved_open, closed_master])
+@pytest.mark.parametrize("basis", ["standard", "dual"])
+def test_polyline_closed_form_equals_the_jets(config, basis):
+    # the closed-form polyline kernel against the jets' Gauss rule (exact for its quadratic
+    # integrand): values, gradients, full and pair-weighted Hessians, open chain ends and
+    # clamped bounds included
+    xs, ss, xm, sm = config()
+    pairs = candidate_pairs(xs, ss, xm, sm, 0.3)
+    closed = mortar.weighted_gaps(xs, ss, xm, sm, Polyline(xm, sm), pairs, 2, basis=basis)
+    jets = mortar.weighted_gaps(xs, ss, xm, sm, _JetPolyline(xm, sm), pairs, 2, basis=basis)
+    rng = np.random.default_rng(3)
+    for a, b in zip(closed, jets):
+        assert np.array_equal(a.node, b.node) and a.size > 10
+        for x, y in ((a.value, b.value), (a.grad, b.grad), (a.hess, b.hess)):
+            assert np.abs(x - y).max() <= 1e-13 * np.abs(y).max()
+        h = a.size // 2
+        wa, wb = rng.normal(size=h), rng.normal(size=h)
+        some = np.flatnonzero(rng.random(h) < 0.4)
+        for sel in (slice(0, h), some):
+            x, y = a.pair_hessian(wa[sel], wb[sel], sel), b.pair_hessian(wa[sel], wb[sel], sel)
+            assert np.abs(x - y).max() <= 1e-13 * np.abs(y).max()
+
 # ---------------------------------------------------------------- flat patch test
 def flat(delta, slave_from, slave_to, seed=2):
     """Master y = 0 on x ∈ [0, 4] (+x, 9 nodes), slave y = δ traversed −x, both spaced

@@ -8,11 +8,11 @@ import pytest
 from conftest import ROOT
 from fenicsx_mortar import _dolfinx as dx
 from fenicsx_mortar import load_scene
-from fenicsx_mortar.bulk import build_bulk
+from fenicsx_mortar.scene.bulk import build_bulk
 from fenicsx_mortar.contact.registry import SMOOTHINGS
-from fenicsx_mortar.meshing import build_domain
+from fenicsx_mortar.scene.meshing import build_domain
 from fenicsx_mortar.problem import ContactProblem
-from fenicsx_mortar.run import scene_pairs
+from fenicsx_mortar.scene.runner import scene_pairs
 
 
 def system(method: str, enforcement: str, mu: float = 0.0, smoothing: str = "none",

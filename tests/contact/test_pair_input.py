@@ -8,7 +8,7 @@ from conftest import ROOT
 from fenicsx_mortar import _dolfinx as dx
 from fenicsx_mortar import load_scene
 from fenicsx_mortar.contact.pair import ContactPair
-from fenicsx_mortar.meshing import build_domain
+from fenicsx_mortar.scene.meshing import build_domain
 from fenicsx_mortar.problem import ContactProblem
 
 

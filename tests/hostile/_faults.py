@@ -64,6 +64,8 @@ def fdopen(fd, *args, **kwargs):
 def replace(src, dst, *args, **kwargs):
     global _armed
     _replace(src, dst, *args, **kwargs)
+    if kwargs.get("dst_dir_fd") is not None:   # output.write_file: names in a directory
+        dst = os.path.join(os.readlink(f"/proc/self/fd/{kwargs['dst_dir_fd']}"), dst)
     if Path(dst).resolve() == OUT / "summary.json":
         _armed = _armed or bool(json.loads(_open(dst).read()).get("steps"))
 

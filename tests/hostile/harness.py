@@ -86,7 +86,8 @@ def command(case: Case, d: Path) -> list[str]:
         cmd += ["-m", "fenicsx_mortar"]
     cmd += case.args(d)
     if case.mode == "mpi":
-        cmd = ["mpirun", "-n", str(case.ranks), "--oversubscribe", *cmd]
+        from fenicsx_mortar.mpi_launch import mpi_command
+        cmd = [*mpi_command(case.ranks), *cmd]
     return cmd
 
 
@@ -103,11 +104,18 @@ def run_process(case: Case, d: Path, donors: Donors, env: dict | None = None,
     case.write_inputs(d, donors)
     before = files_under(d)
     env = {**(env or os.environ), **MPI_ENV, "PYTHONUNBUFFERED": "1",
-           **{k: v.format(dir=d) for k, v in case.env.items()}}
+           **{k: v if v is None else v.format(dir=d) for k, v in case.env.items()}}
+    env = {k: v for k, v in env.items() if v is not None}      # None: unset
+    # a case's stdout may be a file (/dev/full: every write fails)
+    stdout = open(case.stdout, "w") if case.stdout else subprocess.PIPE
     t0 = time.time()
-    proc = subprocess.Popen(command(case, d), cwd=d / "work", env=env, text=True,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            start_new_session=True, preexec_fn=_limit_memory)
+    try:
+        proc = subprocess.Popen(command(case, d), cwd=d / "work", env=env, text=True,
+                                stdout=stdout, stderr=subprocess.PIPE,
+                                start_new_session=True, preexec_fn=_limit_memory)
+    finally:
+        if case.stdout:
+            stdout.close()
     seen = ""
     try:
         if case.sender is not None:
@@ -119,6 +127,7 @@ def run_process(case: Case, d: Path, donors: Donors, env: dict | None = None,
         os.killpg(proc.pid, 9)
         out, err = proc.communicate()
         code = None
+    out = out or ""
     try:
         o = Outcome(code, seen + out, err, time.time() - t0, stray(d, before), d)
         o.problem = problem(case, o)
@@ -140,12 +149,18 @@ def problem(case: Case, o: Outcome) -> str:
 def ours(err: str) -> str:
     """stderr without Open MPI's own reports (of a non-zero exit, of MPI_Abort): its blocks
     between dashed lines, its "[host:pid] ..." help-aggregation lines and its components'
-    lines ("mca_fbtl_posix_pwritev: error in (p)write(v): ..." on a full disk)."""
-    kept, inside = [], False
+    lines ("mca_fbtl_posix_pwritev: error in (p)write(v): ..." on a full disk); and without
+    MPICH's line for MPI_Abort ("Abort(1) on node 0 (rank 0 in comm 0): ...") and the
+    copy of the aborting rank's last line that MPICH's launcher sometimes forwards again
+    with it (seen with mpiexec -prepend-rank: both from rank 0, written once)."""
+    kept, inside, aborted = [], False, False
     for line in err.splitlines(keepends=True):
         if line.startswith("-----"):
             inside = not inside
-        elif not inside and not re.match(r"\[[^\]\s]+:\d+\] |mca_\w+: ", line):
+        elif re.match(r"Abort\(\d+\) on node \d+ ", line):
+            aborted = True
+        elif not inside and not re.match(r"\[[^\]\s]+:\d+\] |mca_\w+: ", line) \
+                and not (aborted and line in kept):
             kept.append(line)
     return "".join(kept)
 

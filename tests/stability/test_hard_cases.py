@@ -62,9 +62,9 @@ def test_case01_grazing_approach_pressure_single_humped():
 
 
 def _pair_warnings(scene) -> list[str]:
-    from fenicsx_mortar.bulk import build_bulk
-    from fenicsx_mortar.meshing import build_domain
-    from fenicsx_mortar.run import scene_pairs
+    from fenicsx_mortar.scene.bulk import build_bulk
+    from fenicsx_mortar.scene.meshing import build_domain
+    from fenicsx_mortar.scene.runner import scene_pairs
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         dom = build_domain(scene)

@@ -15,7 +15,7 @@ from typing import Callable, TypeVar
 
 from mpi4py import MPI
 
-from .scene import SceneError
+from .model import SceneError
 
 T = TypeVar("T")
 

@@ -11,10 +11,11 @@ import numpy as np
 import ufl
 from mpi4py import MPI
 
-from . import _dolfinx as dx
+from .. import _dolfinx as dx
 from .materials import LAWS, Law, lame
 from .meshing import Domain
-from .scene import Scene, SceneError
+from .model import Scene, SceneError
+from .supports import point_vertices
 
 _COMPONENTS = ("x", "y")
 
@@ -132,7 +133,7 @@ def _supports(scene: Scene, dom: Domain, V):
             facets = dom.facets(d.boundary)
             dofs = {c: dx.facet_dofs(V, k, facets) for k, c in enumerate(_COMPONENTS)}
         else:
-            verts = _point_vertices(dom, d.point, d.body, scene)
+            verts = point_vertices(dom, d.point, d.body, scene)
             if comm.allreduce(len(verts), op=MPI.SUM) == 0:
                 raise SceneError(f"dirichlet[{i}].point = {d.point}: not a mesh node of body "
                                  f"{d.body!r} (point supports must sit on a node)")
@@ -147,20 +148,6 @@ def _supports(scene: Scene, dom: Domain, V):
             bcs.append(dx.dirichletbc(const, dofs[c], V, k))
         supports.append(Support(label, comps, {c: dofs[c] for c in comps}))
     return supports, bcs, motions
-
-
-def _point_vertices(dom: Domain, point, body: str, scene: Scene) -> np.ndarray:
-    x = dx.node_coordinates(dom.mesh)
-    scale = float(np.ptp(x, axis=0).max()) if len(x) else 1.0
-    scale = dom.mesh.comm.allreduce(scale, op=MPI.MAX)
-    tol = 1e-8 * scale
-    p = np.array(point, dtype=float)
-    verts = dx.locate_vertices(dom.mesh, lambda X: np.hypot(X[0] - p[0], X[1] - p[1]) < tol)
-    group = next(b.group for b in scene.bodies if b.name == body)
-    body_cells = dom.cells(group)
-    v2c = dx.cells_of_vertices(dom.mesh)
-    keep = [v for v in verts if np.isin(v2c.links(v), body_cells).any()]
-    return np.array(keep, dtype=np.int32)
 
 
 class StressOutput:

@@ -41,9 +41,9 @@ class Snapshot:
 
 
 def snapshot(result, time: float | None = None, pair: int = 0) -> Snapshot:
-    """The current state of a :class:`~fenicsx_mortar.run.Result` (or of the state handed to
-    ``solve(..., on_step=...)``)."""
-    from . import _dolfinx as dx
+    """The current state of a :class:`~fenicsx_mortar.scene.runner.Result` (or of the state
+    handed to ``solve(..., on_step=...)``)."""
+    from .. import _dolfinx as dx
     msh = result.domain.mesh
     if msh.comm.size > 1:
         raise NotImplementedError("pictures: serial runs only")

@@ -3,25 +3,28 @@ mesh + named tags."""
 from __future__ import annotations
 
 import importlib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from mpi4py import MPI
 
-from . import _dolfinx as dx
-from . import mshfile
+from .. import _dolfinx as dx
+from ..io import mshfile
+from . import supports
 from .parallel import wait_for_all
-from .scene import LIMITS, Scene, SceneError, as_list
+from .model import LIMITS, Scene, SceneError, as_list
 
 
 @dataclass
 class Domain:
-    """The distributed mesh with its physical groups by name."""
+    """The distributed mesh with its physical groups by name; ``warnings``: what the checks
+    of the scene on it noticed (e.g. a body that only contact holds), for the run's log."""
     mesh: dx.Mesh
     cell_tags: object
     facet_tags: object
     cell_groups: dict[str, int]
     facet_groups: dict[str, int]
+    warnings: list[str] = field(default_factory=list)
 
     def facets(self, names: str | list[str]) -> np.ndarray:
         """Local facet indices of one or more named curve groups."""
@@ -295,14 +298,23 @@ def _check_areas(x: np.ndarray, cells: np.ndarray, where: str) -> None:
 
 
 def _gmsh_initialize(gmsh) -> None:
-    """gmsh.initialize keeping our SIGINT handler: gmsh >= 4.11 resets SIGINT to the default
-    (an interrupt while meshing would kill the process without a word)."""
+    """gmsh.initialize keeping our SIGINT and SIGTERM handlers: gmsh >= 4.11 resets SIGINT to
+    the default unless ``interruptible=False``, gmsh 4.15 resets SIGTERM regardless (a
+    signal while meshing would kill the process without a word)."""
     import inspect
+    import signal
+    import threading
+    kept = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
     # no ~/.gmshrc or ~/.gmsh-options: they are scripts too, and not the scene's
     if "interruptible" in inspect.signature(gmsh.initialize).parameters:
         gmsh.initialize(readConfigFiles=False, interruptible=False)
     else:
         gmsh.initialize(readConfigFiles=False)
+    if threading.current_thread() is threading.main_thread():
+        # Python still lists its handler after a C-level reset: install it again
+        for s, handler in kept.items():
+            if handler is not None:
+                signal.signal(s, handler)
 
 
 def build_domain(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD) -> Domain:
@@ -330,6 +342,7 @@ def build_domain(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD) -> Domain:
         gmsh.finalize()
     dom = Domain(msh, ct, ft, groups[2], groups[1])
     _check_groups(scene, dom, comm)
+    dom.warnings = supports.check(scene, dom, comm)
     return dom
 
 
@@ -356,12 +369,17 @@ def _check_groups(scene: Scene, dom: Domain, comm: MPI.Comm) -> None:
 
 def _check_loads_on_boundary(scene: Scene, dom: Domain, comm: MPI.Comm) -> None:
     """Pressures and tractions act on exterior facets (``ds``): on a curve group inside a
-    body they would be dropped without a word."""
+    body they would be dropped without a word. Contact surfaces too: a master inside a
+    body lets the other body overlap it with zero contact force."""
     keys: dict[str, str] = {}
     for kind, items in (("pressures", scene.pressures), ("tractions", scene.tractions)):
         for i, item in enumerate(items):
             for name in as_list(item.boundary):
                 keys.setdefault(name, f"{kind}[{i}].boundary")
+    for i, c in enumerate(scene.contacts):
+        for side in ("slave", "master"):
+            for name in as_list(getattr(c, side)):
+                keys.setdefault(name, f"contacts[{i}].{side}")
     if not keys:
         return
     outer = dx.exterior_facets(dom.mesh)
@@ -374,7 +392,9 @@ def _check_loads_on_boundary(scene: Scene, dom: Domain, comm: MPI.Comm) -> None:
         n = sum(c for c, _ in counts)
         if n:
             x, y = next(p for c, p in counts if c)
+            what = ("a contact surface must be on a body's boundary (the other body would "
+                    "pass through these unopposed)") if key.startswith("contacts") else \
+                "a load acts on a body's boundary only, and these would be ignored"
             raise SceneError(f"{key}: {n} facet(s) of physical curve group {name!r} lie inside "
                              f"the mesh, between two cells (the first at ({x:.6g}, {y:.6g})); "
-                             "a load acts on a body's boundary only, and these would be "
-                             "ignored")
+                             f"{what}")

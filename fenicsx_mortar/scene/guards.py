@@ -10,10 +10,11 @@ converged state is the core's, acceptance.py, and runs in every solve):
 from __future__ import annotations
 
 import numpy as np
+from mpi4py import MPI
 
-from . import _dolfinx as dx
-from . import petsc_options as po
-from .scene import Scene, SceneError, SolverSettings
+from .. import _dolfinx as dx
+from .. import petsc_options as po
+from .model import Scene, SceneError, SolverSettings
 
 #: atol against the loads' residual scale: above, u = 0 passes as converged; below, it is
 #: round-off
@@ -42,8 +43,10 @@ def check_tolerance(scene: Scene, bulk, samples: int = 16) -> None:
     0)‖ (bulk forms, Dirichlet rows included, as Newton's first residual) over the load
     path, sampled at up to ``samples`` load-step targets (the last one included) and as
     many evenly spaced pseudo-times (a step's cuts visit those: a full turn in one step has
-    no load at its target). A scene without loads (scale 0) is not checked. Collective;
-    call before the first step (u = 0)."""
+    no load at its target); and not below the residual's round-off floor
+    (:func:`roundoff_floor`), which no Newton iterate gets under. A scene without loads
+    (scale 0) is checked against the floor only. Collective; call before the first step
+    (u = 0). Raises SceneError naming the key to change."""
     targets = scene.steps.targets()
     m = min(samples, len(targets))
     times = {targets[round(i * (len(targets) - 1) / max(m - 1, 1))] for i in range(m)}
@@ -59,13 +62,60 @@ def check_tolerance(scene: Scene, bulk, samples: int = 16) -> None:
     bulk.set_time(0.0)
     b.destroy()
     x.destroy()
+    floor, stiffest = roundoff_floor(scene, bulk)
     atol = scene.solver.atol
     low, high = ATOL_RANGE
-    if scale > 0 and not low * scale <= atol <= high * scale:
-        raise SceneError(f"solver.atol = {atol:g}: must lie in [{low:g}, {high:g}] x the loads' "
-                         f"residual scale {scale:.3g} (|R| at u = 0 over the load path): "
-                         + ("a larger atol passes u = 0 as converged" if atol > high * scale
-                            else "a smaller one is below round-off"))
+    if scale > 0 and floor > high * scale:
+        raise SceneError(
+            f"{stiffest}: the loads' residual scale {scale:.3g} (|R| at u = 0 over the load "
+            f"path) is within {1 / high:g}x of the residual's round-off floor {floor:.3g} "
+            "(double precision x E x the bodies' size): no solver.atol can tell an answer "
+            "from u = 0 here; loads this small against E need other units (scale E and the "
+            "loads together)")
+    if scale > 0 and atol > high * scale:
+        raise SceneError(f"solver.atol = {atol:g}: must lie in [{max(low * scale, floor):.3g}, "
+                         f"{high * scale:.3g}] ({high:g} x the loads' residual scale "
+                         f"{scale:.3g}, |R| at u = 0 over the load path): a larger atol "
+                         "passes u = 0 as converged")
+    if scale > 0 and atol < low * scale:
+        raise SceneError(f"solver.atol = {atol:g}: must lie in [{max(low * scale, floor):.3g}, "
+                         f"{high * scale:.3g}] x the loads' residual scale {scale:.3g} (|R| at "
+                         f"u = 0 over the load path): a smaller one is below round-off")
+    if atol < floor:
+        top = f", {high * scale:.3g}]" if scale > 0 else "]"
+        raise SceneError(f"solver.atol = {atol:g}: below the residual's round-off floor "
+                         f"{floor:.3g} at this problem's scale (double precision x E x the "
+                         f"bodies' size, from {stiffest}): no Newton iterate gets under it, "
+                         f"every step would fail; set solver.atol in [{floor:.3g}{top}")
+
+
+def roundoff_floor(scene: Scene, bulk) -> tuple[float, str]:
+    """The round-off floor of the residual's norm and the key of the body that sets it:
+    a cell's stress is computed to about ε E (the strain is a difference of O(1) terms),
+    its nodal forces to ε E h, so over the mesh ‖δR‖ ≈ ε (Σ_b E_b² A_b)^½ (A_b: the body's
+    area); a block 5e5 wide with E = 1000 stalls at |R| ≈ 1e-7 (collective)."""
+    dom = bulk.domain
+    msh = dom.mesh
+    x = dx.node_coordinates(msh)
+    n_own = dx.num_owned_cells(msh)
+    cells = dx.cell_nodes(msh)[:n_own]
+    if cells.shape[1] == 4:                  # DOLFINx's quadrilaterals: tensor order
+        cells = cells[:, [0, 1, 3, 2]]
+    p = x[cells]
+    q = np.roll(p, -1, axis=1)
+    area = 0.5 * np.abs(np.sum(p[..., 0] * q[..., 1] - q[..., 0] * p[..., 1], axis=1))
+    tag = np.full(dx.num_cells(msh), -1)
+    tag[dom.cell_tags.indices] = dom.cell_tags.values
+    tag = tag[:n_own]
+    comm = msh.comm
+    total, stiffest, worst = 0.0, "bodies[0].material.E", -1.0
+    for i, body in enumerate(scene.bodies):
+        a = comm.allreduce(float(area[tag == dom.cell_groups[body.group]].sum()), op=MPI.SUM)
+        part = body.material.E ** 2 * a
+        total += part
+        if part > worst:
+            stiffest, worst = f"bodies[{i}].material.E", part
+    return float(np.finfo(float).eps * np.sqrt(total)), stiffest
 
 
 def penetration_warning(pair, step: int) -> str | None:

@@ -22,16 +22,17 @@ from typing import Callable, TypeVar
 
 from mpi4py import MPI
 
-from . import _dolfinx as dx
-from . import checkpoint, guards, output
-from .contact import output as interface_output
+from .. import _dolfinx as dx
+from ..io import checkpoint, output
+from ..io import interface as interface_files
+from . import guards
 from .bulk import Bulk, StressOutput, build_bulk
 from .meshing import Domain, build_domain
 from .parallel import BrokenOutput, RankOSError, RunError, agree, on_rank0
-from .scene import Scene, SceneError
-from .newton import StepResult
-from .stepping import Cut, Event, LoadStepper, Retried, StepDone, StepStarted
-from .timings import Timings
+from .model import Scene, SceneError
+from ..newton import StepResult
+from ..stepping import Cut, Event, LoadStepper, Retried, StepDone, StepStarted
+from ..timings import Timings
 
 T = TypeVar("T")
 
@@ -72,11 +73,15 @@ def _enter(what: str) -> None:
 def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM_WORLD,
           log: Callable[[str], None] | None = None, restart: bool = False,
           on_step: Callable[[dict, "Result"], None] | None = None) -> Result:
-    """Run a scene. With ``out``, write summary.json, solution.xdmf, plots and a checkpoint
-    there after every converged step, so a run that fails or is interrupted (SIGINT,
-    SIGTERM) keeps what converged; ``restart=True`` continues from ``out``'s checkpoint.
-    ``on_step(record, state)`` is called after every converged step with the step's record
-    and a Result holding the current state (for pictures or custom output of each step).
+    """Run a scene: build (mesh, forms, pairs) → :class:`~.problem.ContactProblem` →
+    :class:`~.stepping.LoadStepper`, with the step records and the outputs as observers of
+    the converged steps.
+
+    With ``out``, write summary.json, solution.xdmf, plots and a checkpoint there after every
+    converged step, so a run that fails or is interrupted (SIGINT, SIGTERM) keeps what
+    converged; ``restart=True`` continues from ``out``'s checkpoint. ``on_step(record,
+    state)`` is called after every converged step with the step's record and a Result
+    holding the current state (for pictures or custom output of each step).
 
     Bad input raises SceneError on every rank, before meshing where it can be told without
     the mesh (the scene, the PETSc options, the output directory, the checkpoint) and
@@ -89,34 +94,19 @@ def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM
     scene.validate()
     guards.check_petsc_options(scene.solver)
     out = Path(out) if out is not None else None
-    saved = None
-    if restart:
-        if out is None or not (out / checkpoint.FILE).is_file():
-            raise SceneError(f"restart: {out}/{checkpoint.FILE} does not exist (no converged "
-                             "step to continue from)")
-        saved = checkpoint.read(out, comm, scene_to_json(scene))
-    elif out is not None:
-        on_rank0(comm, lambda: output.prepare_out(out))
-    rank0 = comm.rank == 0
-    log = log or (_log_line if rank0 else (lambda s: None))
+    saved = _open_out(scene, out, comm, restart)
+    log = log or (_log_line if comm.rank == 0 else (lambda s: None))
     timings = Timings()
     t_start = time.perf_counter()
-
     # the title is the user's text: control characters (escapes, CR) would drive the terminal
     title = "".join(c if c.isprintable() else " " for c in scene.title or "scene")
     log(f"fenicsx_mortar: {title}")
     for e in scene.effects():
         log(f"  effect: {e}")
 
-    _enter("meshing")
-    with timings("mesh"):
-        dom = build_domain(scene, comm)
-    _enter("compiling the forms (JIT)")
-    with timings("jit"), _jit_cache_kept_whole():
-        bulk = build_bulk(scene, dom)
-        stress = StressOutput(bulk, scene)
-    _enter("setting up the contact pairs and the solver")
-    pairs = scene_pairs(scene, dom, bulk.V) if scene.contacts else []
+    dom, bulk, stress, pairs = build(scene, comm, timings)
+    for w in dom.warnings:
+        log(f"  warning: {w}")
     fingerprints = (checkpoint.scene_fingerprint(scene_to_json(scene)),
                     checkpoint.mesh_fingerprint(dom, comm))
     t0, k0, steps = 0.0, 0, []
@@ -130,10 +120,66 @@ def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM
     else:
         guards.check_tolerance(scene, bulk)
     stop = _StopRequest(comm)
+    problem = _problem(scene, dom, bulk, pairs, timings, stop)
+    ndofs = dx.dof_count(bulk.V)
+    log(f"  dofs: {ndofs}, ranks: {comm.size}")
+
+    summary = {"title": scene.title, "converged": False, "message": "running",
+               "effects": scene.effects(), "dofs": ndofs, "ranks": comm.size,
+               "steps": steps, "timings": timings, "warnings": list(dom.warnings)}
+    outputs = _Outputs(scene, out, comm, bulk, stress, pairs, fingerprints, (k0, t0), restart,
+                       timings, log) if out is not None else None
+    recorder = _StepRecorder(scene, dom, bulk, stress, pairs, problem, steps, summary,
+                             outputs, timings, log, on_step)
+    _enter("in the load steps")
+    try:
+        with stop:
+            ended = LoadStepper(problem, bulk.set_time, scene.steps.targets(),
+                                max_cuts=scene.steps.max_cuts,
+                                min_increment=scene.steps.floor(), on_step=recorder,
+                                on_event=_progress(log, comm), start=(k0, t0)).run()
+    except RunError as e:
+        if outputs is not None:
+            outputs.abandon(e)
+        raise
+    completed, message = ended.completed, ended.message
+    if message.startswith("interrupted"):
+        message += "; continue with: fenicsx-mortar run --restart DIR"
+    timings["total"] = time.perf_counter() - t_start
+    _enter("writing the final outputs")
+    summary.update(converged=completed, message=message, steps=steps)
+    if outputs is not None:
+        outputs.finish(summary, steps)
+    summary["timings"] = dict(timings)
+    problem.close()
+    _enter("reading the scene")
+    log(("done: " if completed else "FAILED: ") + message)
+    return Result(scene, completed, message, steps, dict(timings), dom, bulk, stress, pairs,
+                  summary)
+
+
+def build(scene: Scene, comm: MPI.Comm, timings: Timings):
+    """The scene's mesh, bulk forms, stress output and contact pairs (the slow parts of the
+    set-up, each timed: meshing, the forms' JIT compilation)."""
+    _enter("meshing")
+    with timings("mesh"):
+        dom = build_domain(scene, comm)
+    _enter("compiling the forms (JIT)")
     with timings("jit"), _jit_cache_kept_whole():
-        from .problem import ContactProblem
+        bulk = build_bulk(scene, dom)
+        stress = StressOutput(bulk, scene)
+    _enter("setting up the contact pairs and the solver")
+    pairs = scene_pairs(scene, dom, bulk.V) if scene.contacts else []
+    return dom, bulk, stress, pairs
+
+
+def _problem(scene: Scene, dom: Domain, bulk: Bulk, pairs: list, timings: Timings,
+             stop: "_StopRequest"):
+    """The scene's :class:`~.problem.ContactProblem` (its acceptance checks compile)."""
+    from ..problem import ContactProblem
+    with timings("jit"), _jit_cache_kept_whole():
         # a prefix of its own: no option of the environment reaches the scene's solver
-        problem = ContactProblem(
+        return ContactProblem(
             bulk.residual, bulk.u, bulk.bcs, pairs, bulk.jacobian,
             petsc_options_prefix=f"fm{next(_PREFIXES)}_", settings=scene.solver,
             max_augmentations=max((c.enforcement.max_augmentations for c in scene.contacts),
@@ -141,71 +187,26 @@ def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM
             cell_tags=dom.cell_tags,
             body_names={dom.cell_groups[b.group]: b.name for b in scene.bodies},
             timings=timings, should_stop=stop.requested)
-        solver = problem.newton
-    ndofs = dx.dof_count(bulk.V)
-    log(f"  dofs: {ndofs}, ranks: {comm.size}")
 
-    summary = {"title": scene.title, "converged": False, "message": "running",
-               "effects": scene.effects(), "dofs": ndofs, "ranks": comm.size,
-               "steps": steps, "timings": timings, "warnings": []}
-    writer = None
-    kept = {"checkpoint.npz": k0, "summary.json": k0}
+
+def _open_out(scene: Scene, out: Path | None, comm: MPI.Comm, restart: bool):
+    """The checkpoint to restart from (read and checked), or ``out`` made ready; None."""
+    if restart:
+        if out is None or not (out / checkpoint.FILE).is_file():
+            raise SceneError(f"restart: {out}/{checkpoint.FILE} does not exist (no converged "
+                             "step to continue from)")
+        return checkpoint.read(out, comm, scene_to_json(scene))
     if out is not None:
-        if not restart:
-            cleared = on_rank0(comm, lambda: output.clear_previous(out))
-            if cleared:
-                log(f"  removed {cleared} files of a previous run in {out}")
-            _write(out, comm, kept, lambda: output.write_atomic(out / "scene.json",
-                                                                scene_to_json(scene)),
-                   rank0_only=True)
-        with timings("output"):
-            if scene.output.xdmf:
-                # a restart continues in its own file: XDMF cannot be reopened for appending
-                name = f"solution_from_step_{k0}.xdmf" if restart else "solution.xdmf"
-                writer = _xdmf(out, kept, lambda: dx.XDMFWriter(comm, str(out / name),
-                                                                 dom.mesh))
-                stress.update()
-                _xdmf(out, kept, lambda: writer.write([bulk.u, stress.sigma], t0))
-    warned: set[str] = set()
+        on_rank0(comm, lambda: output.prepare_out(out))
+    return None
 
-    def record_step(done: StepDone) -> None:
-        k, t, res, cuts = done.step, done.time, done.result, done.cuts
-        b = solver.unconstrained_residual()
-        record = {"step": k, "time": t, "load_factor": t, "newton_iterations": res.iterations,
-                  "augmentations": res.augmentations, "cuts": cuts,
-                  "residuals": res.residuals, "reactions": bulk.reactions(b)}
-        for p in pairs:
-            record.setdefault("contact", {}).update(p.record())
-        steps.append(record)
-        for p, c in zip(pairs, scene.contacts):
-            warning = guards.penetration_warning(p, k) if c.enforcement.type == "penalty" \
-                else None
-            if warning and p.name not in warned:
-                warned.add(p.name)
-                summary["warnings"].append(warning)
-                log(f"  warning: {warning}")
-        with timings("output"):
-            stress.update()
-            if writer is not None:
-                _xdmf(out, kept, lambda: writer.write([bulk.u, stress.sigma], t))
-            if out is not None:
-                _write(out, comm, kept, lambda: checkpoint.save(
-                    out, comm, bulk.u, pairs, t, k, steps, fingerprints), "checkpoint.npz", k)
-                _write(out, comm, kept, lambda: [interface_output.write_interface(p, out, k)
-                                                 for p in pairs], rank0_only=True)
-                # last: a summary.json that lists step k means all of step k's files exist
-                _write(out, comm, kept, lambda: output.write_summary(out, summary),
-                       "summary.json", k, rank0_only=True)
-        log(_step_line(k, t, res, cuts))
-        if on_step is not None:
-            on_step(record, Result(scene, False, "running", steps, dict(timings), dom, bulk,
-                                   stress, pairs, summary))
 
-    live = _progress_printer() if rank0 else (lambda s: None)
+def _progress(log: Callable[[str], None], comm: MPI.Comm) -> Callable[[Event], None]:
+    """The stepper's events in the run's log: why an increment failed belongs there (a
+    batch run's only record of it); an attempt is a live status line only."""
+    live = _progress_printer() if comm.rank == 0 else (lambda s: None)
 
     def progress(e: Event) -> None:
-        # why an increment failed belongs in the log (a batch run's only record of it);
-        # the attempt is a live status line only
         if isinstance(e, StepStarted):
             live(f"step {e.step} t={e.time:.6g} ...")
         elif isinstance(e, Cut):
@@ -214,42 +215,109 @@ def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM
             log(f"  MUMPS workspace too small: retrying with ICNTL(14) = {e.value}")
         elif isinstance(e, Retried):
             log(f"  retrying with {e.how}: {e.reason}")
-    _enter("in the load steps")
-    try:
-        with stop:
-            stepper = LoadStepper(problem, bulk.set_time, scene.steps.targets(),
-                                  max_cuts=scene.steps.max_cuts,
-                                  min_increment=scene.steps.floor(), on_step=record_step,
-                                  on_event=progress, start=(k0, t0))
-            ended = stepper.run()
-        completed, message = ended.completed, ended.message
-        if message.startswith("interrupted"):
-            message += "; continue with: fenicsx-mortar run --restart DIR"
-    except RunError as e:
-        # no "FAILED" log line: the caller says it (the CLI: one line on stderr); under Open
-        # MPI 5 a stdout line written just before it was seen merged into mpirun's stderr
-        # (tests/hostile mpi_disk_full). After a failed XDMF write no rank closes the file:
-        # the close is collective, and the rank whose write failed does not take part
-        if writer is not None and not isinstance(e, BrokenOutput):
+    return progress
+
+
+class _StepRecorder:
+    """The stepper's ``on_step``: a converged step's record (reactions, contact records),
+    penalty warnings, the stress, the outputs, the log line, the user's callback."""
+
+    def __init__(self, scene, dom, bulk, stress, pairs, problem, steps: list, summary: dict,
+                 outputs: "_Outputs | None", timings: Timings, log, on_step):
+        self.scene, self.dom, self.bulk, self.stress, self.pairs = scene, dom, bulk, stress, pairs
+        self.problem, self.steps, self.summary, self.outputs = problem, steps, summary, outputs
+        self.timings, self.log, self.on_step = timings, log, on_step
+        self.warned: set[str] = set()
+
+    def __call__(self, done: StepDone) -> None:
+        k, t, res, cuts = done.step, done.time, done.result, done.cuts
+        b = self.problem.newton.unconstrained_residual()
+        record = {"step": k, "time": t, "load_factor": t, "newton_iterations": res.iterations,
+                  "augmentations": res.augmentations, "cuts": cuts,
+                  "residuals": res.residuals, "reactions": self.bulk.reactions(b)}
+        b.destroy()
+        for p in self.pairs:
+            record.setdefault("contact", {}).update(p.record())
+        self.steps.append(record)
+        for p, c in zip(self.pairs, self.scene.contacts):
+            warning = guards.penetration_warning(p, k) if c.enforcement.type == "penalty" \
+                else None
+            if warning and p.name not in self.warned:
+                self.warned.add(p.name)
+                self.summary["warnings"].append(warning)
+                self.log(f"  warning: {warning}")
+        with self.timings("output"):
+            self.stress.update()
+            if self.outputs is not None:
+                self.outputs.step(k, t, self.steps, self.summary)
+        self.log(_step_line(k, t, res, cuts))
+        if self.on_step is not None:
+            self.on_step(record, Result(self.scene, False, "running", self.steps,
+                                        dict(self.timings), self.dom, self.bulk, self.stress,
+                                        self.pairs, self.summary))
+
+
+class _Outputs:
+    """The files of a run in ``out``, written after every converged step so that a run that
+    stops keeps what converged: solution.xdmf (u and the stress), checkpoint.npz, the
+    interface CSVs, and summary.json last (a summary that lists step k means all of step
+    k's files exist)."""
+
+    def __init__(self, scene, out: Path, comm: MPI.Comm, bulk, stress, pairs, fingerprints,
+                 start: tuple[int, float], restart: bool, timings: Timings, log):
+        self.scene, self.out, self.comm = scene, out, comm
+        self.bulk, self.stress, self.pairs, self.fingerprints = bulk, stress, pairs, fingerprints
+        self.timings = timings
+        k0, t0 = start
+        #: what each file holds, for the message of a failed write
+        self.kept = {"checkpoint.npz": k0, "summary.json": k0}
+        self.writer = None
+        if not restart:
+            cleared = on_rank0(comm, lambda: output.clear_previous(out))
+            if cleared:
+                log(f"  removed {cleared} files of a previous run in {out}")
+            _write(out, comm, self.kept, lambda: output.write_file(
+                out, "scene.json", scene_to_json(scene)), rank0_only=True)
+        with timings("output"):
+            if scene.output.xdmf:
+                # a restart continues in its own file: XDMF cannot be reopened for appending
+                name = f"solution_from_step_{k0}.xdmf" if restart else "solution.xdmf"
+                self.writer = _xdmf(out, self.kept, lambda: dx.XDMFWriter(
+                    comm, str(output.path_for(out, name)), bulk.domain.mesh))
+                stress.update()
+                _xdmf(out, self.kept, lambda: self.writer.write([bulk.u, stress.sigma], t0))
+
+    def step(self, k: int, t: float, steps: list, summary: dict) -> None:
+        out, comm, kept = self.out, self.comm, self.kept
+        if self.writer is not None:
+            _xdmf(out, kept, lambda: self.writer.write([self.bulk.u, self.stress.sigma], t))
+        _write(out, comm, kept, lambda: checkpoint.save(
+            out, comm, self.bulk.u, self.pairs, t, k, steps, self.fingerprints),
+            "checkpoint.npz", k)
+        _write(out, comm, kept, lambda: [interface_files.write_interface(p, out, k)
+                                         for p in self.pairs], rank0_only=True)
+        _write(out, comm, kept, lambda: output.write_summary(out, summary), "summary.json",
+               k, rank0_only=True)
+
+    def finish(self, summary: dict, steps: list) -> None:
+        with self.timings("output"):
+            if self.writer is not None:
+                _xdmf(self.out, self.kept, self.writer.close)
+            summary["timings"] = dict(self.timings)
+            _write(self.out, self.comm, self.kept, lambda: _final_outputs(
+                self.out, self.scene, summary, steps, self.pairs), rank0_only=True)
+
+    def abandon(self, e: RunError) -> None:
+        """The run stops with ``e``. No "FAILED" log line: the caller says it (the CLI: one
+        line on stderr); under Open MPI 5 a stdout line written just before it was seen
+        merged into mpirun's stderr (tests/hostile mpi_disk_full). After a failed XDMF
+        write no rank closes the file: the close is collective, and the rank whose write
+        failed does not take part."""
+        if self.writer is not None and not isinstance(e, BrokenOutput):
             try:
-                writer.close()
+                self.writer.close()
             except OSError:
                 pass             # the error being raised says what went wrong first
-        raise
-    timings["total"] = time.perf_counter() - t_start
-    _enter("writing the final outputs")
-    with timings("output"):
-        if writer is not None:
-            _xdmf(out, kept, writer.close)
-        summary.update(converged=completed, message=message, steps=steps, timings=dict(timings))
-        if out is not None:
-            _write(out, comm, kept, lambda: _final_outputs(out, scene, summary, steps, pairs),
-                   rank0_only=True)
-    summary["timings"] = dict(timings)
-    _enter("reading the scene")
-    log(("done: " if completed else "FAILED: ") + message)
-    return Result(scene, completed, message, steps, dict(timings), dom, bulk, stress, pairs,
-                  summary)
 
 
 @contextlib.contextmanager
@@ -276,7 +344,7 @@ def _final_outputs(out: Path, scene: Scene, summary: dict, steps: list, pairs: l
         output.plot_reactions(out, steps)
         output.plot_convergence(out, steps)
         for p in pairs:
-            interface_output.plot_pressure(p, out)
+            interface_files.plot_pressure(p, out)
 
 
 def _write(out: Path, comm: MPI.Comm, kept: dict, write: Callable[[], object],
@@ -310,7 +378,7 @@ def _kept(kept: dict) -> str:
 def scene_pairs(scene: Scene, dom: Domain, V) -> list:
     """One :class:`~.contact.pair.ContactPair` per contact of the scene, from the mesh's named
     groups (a scene without contact never imports the contact package)."""
-    from .contact.pair import ContactPair
+    from ..contact.pair import ContactPair
     moduli = {dom.cell_groups[b.group]: b.material.E for b in scene.bodies}
     pairs = []
     for i, c in enumerate(scene.contacts):
