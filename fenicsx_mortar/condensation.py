@@ -896,9 +896,14 @@ class Lag:
     ones (its set-up costs as much as 20 Krylov iterations at 2M dofs, and the condensed
     matrix changes little from iterate to iterate), rebuilt once the Krylov iterations per
     decade of residual reduction exceed LIMIT times those right after the last build, and
-    at once when a solve with the lagged one fails."""
+    at once when a solve with the lagged one fails.
+
+    Off (ENABLED): on the large-sliding case (benchmarks/scaling.py, sliding 100k, GAMG)
+    the lagged iterates made step 4 fail (GMRES at its 1000 iterations, every cut too),
+    which converges without it."""
 
     LIMIT = 1.5
+    ENABLED = False
 
     def __init__(self):
         self._ref: float | None = None
@@ -906,7 +911,7 @@ class Lag:
 
     def use(self) -> bool:
         """Whether the next solve reuses the preconditioner."""
-        return not self._stale
+        return self.ENABLED and not self._stale
 
     def refresh(self) -> None:
         self._stale = True
@@ -936,7 +941,14 @@ class _CondensedKSP:
 
     def reset(self, ksp) -> None:
         s = self._system()
-        if s is not None:   # (KSPReset drops the operators too)
+        if s is None:
+            return
+        # the next solve builds its preconditioner afresh
+        s.lag.refresh()
+        if s.inner.getPC().getType() in (PETSc.PC.Type.LU, PETSc.PC.Type.CHOLESKY):
+            # a failed factorization is forgotten (newton._reset_linear_solver); KSPReset
+            # drops the operators too. Not a multigrid's: reset, its levels keep the old
+            # coarse sizes and its next set-up fails ("Cannot change local size of Amat")
             s.inner.reset()
             s.inner.setOperators(s.Kc)
 
