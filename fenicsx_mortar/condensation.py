@@ -25,7 +25,6 @@ anyway); each rank inserts the condensation's entries of the rows it owns.
 """
 from __future__ import annotations
 
-import math
 import weakref
 from typing import Sequence
 
@@ -466,8 +465,6 @@ class CondensedSystem(MultiplierSystem):
         self._f, self._y = self.Kc.createVecs()
         #: Eisenstat–Walker forcing for a Krylov inner solve (set by configure)
         self.forcing: Forcing | None = None
-        #: when a Krylov inner solve builds its preconditioner afresh
-        self.lag = Lag()
         self.last_solve = {"iterations": 0, "reason": 0, "residual": 0.0, "rtol": 0.0}
 
     # -- the condensed matrix's pattern ------------------------------------------------
@@ -547,7 +544,6 @@ class CondensedSystem(MultiplierSystem):
         J = self._build(indptr, indices.astype(np.int64), r0, rows, cols)
         self.Kc.destroy()
         self.Kc = J
-        self.lag.refresh()
         self.inner.setOperators(J)
         self._f, self._y = J.createVecs()
 
@@ -721,27 +717,13 @@ class CondensedSystem(MultiplierSystem):
         add_rows, add, set_rows, values = elim.rhs_update(b_P, b_lam[elim.H], (r0, r1))
         fa[add_rows - r0] += add                # B_rows are unique
         fa[set_rows - r0] = values
-        lagged = False
         if self.forcing is not None:
-            rtol = self.forcing.rtol(b.norm(), fnorm_iteration)
-            self.inner.setTolerances(rtol=rtol)
-            lagged = self.lag.use()
-            self.inner.getPC().setReusePreconditioner(lagged)
+            self.inner.setTolerances(rtol=self.forcing.rtol(b.norm(), fnorm_iteration))
         y = self._y
         y.set(0.0)
         self.inner.solve(f, y)
         reason = self.inner.getConvergedReason()
         its = self.inner.getIterationNumber()
-        if lagged and reason < 0:   # the lagged preconditioner failed: a fresh one
-            self.inner.getPC().setReusePreconditioner(False)
-            y.set(0.0)
-            self.inner.solve(f, y)
-            reason = self.inner.getConvergedReason()
-            its += self.inner.getIterationNumber()
-            lagged = False
-        if self.forcing is not None:
-            self.lag.record(self.inner.getIterationNumber(), lagged,
-                            self.inner.getResidualNorm() / max(f.norm(), 1e-300))
         self._fill_P(y, b_lam[elim.H])
         self.last_solve = {"iterations": its, "reason": int(reason),
                            "residual": float(self.inner.getResidualNorm()),
@@ -891,39 +873,6 @@ class Forcing:
         return eta
 
 
-class Lag:
-    """A lagged preconditioner: the AMG hierarchy of one Newton iteration serves the next
-    ones (its set-up costs as much as 20 Krylov iterations at 2M dofs, and the condensed
-    matrix changes little from iterate to iterate), rebuilt once the Krylov iterations per
-    decade of residual reduction exceed LIMIT times those right after the last build, and
-    at once when a solve with the lagged one fails.
-
-    Off (ENABLED): on the large-sliding case (benchmarks/scaling.py, sliding 100k, GAMG)
-    the lagged iterates made step 4 fail (GMRES at its 1000 iterations, every cut too),
-    which converges without it."""
-
-    LIMIT = 1.5
-    ENABLED = False
-
-    def __init__(self):
-        self._ref: float | None = None
-        self._stale = True
-
-    def use(self) -> bool:
-        """Whether the next solve reuses the preconditioner."""
-        return self.ENABLED and not self._stale
-
-    def refresh(self) -> None:
-        self._stale = True
-
-    def record(self, iterations: int, lagged: bool, reduction: float) -> None:
-        rate = iterations / max(-math.log10(max(reduction, 1e-300)), 1.0)
-        if not lagged:
-            self._ref, self._stale = rate, False
-        elif self._ref is not None and rate > self.LIMIT * self._ref + 1.0:
-            self._stale = True
-
-
 class _CondensedKSP:
     """The SNES's KSP (type python): one condensed solve (CondensedSystem.solve)."""
 
@@ -943,8 +892,6 @@ class _CondensedKSP:
         s = self._system()
         if s is None:
             return
-        # the next solve builds its preconditioner afresh
-        s.lag.refresh()
         if s.inner.getPC().getType() in (PETSc.PC.Type.LU, PETSc.PC.Type.CHOLESKY):
             # a failed factorization is forgotten (newton._reset_linear_solver); KSPReset
             # drops the operators too. Not a multigrid's: reset, its levels keep the old

@@ -82,7 +82,7 @@ def linear_solver_options(name: str, condensed: bool = False) -> dict[str, str]:
     """The KSP and PC options of a :data:`~.settings.LINEAR_SOLVERS` name.
 
     Args:
-        name: The linear solver ("auto" counts as "mumps": it is resolved by size first).
+        name: The linear solver.
         condensed: For the condensed system of dual multipliers (condensation.py): MUMPS
             on it for "condensed-mumps", and the Krylov methods without a fixed tolerance
             (inexact Newton decides it).
@@ -96,7 +96,7 @@ def linear_solver_options(name: str, condensed: bool = False) -> dict[str, str]:
         return {"ksp_type": "gmres", "pc_type": "hypre", "ksp_rtol": "1e-12"}
     if name == "gmres-gamg":
         return {"ksp_type": "gmres", "pc_type": "gamg", "ksp_rtol": "1e-12"}
-    lu = "mumps" if name in ("auto", "condensed-mumps") else name
+    lu = "mumps" if name == "condensed-mumps" else name
     return {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": lu}
 
 
@@ -184,7 +184,7 @@ def check_solver_choice(settings: SolverSettings, user: Mapping[str, str],
     any KSP and PC are taken there.
 
     Args:
-        settings: The solver settings (``linear_solver`` resolved: not "auto").
+        settings: The solver settings.
         user: The user's options (normalized).
         multipliers: Some pair has multipliers as unknowns.
         key: How messages name the options.

@@ -20,7 +20,6 @@ load stepping with step cutting; the scene runner is a client of both.
 """
 from __future__ import annotations
 
-import dataclasses
 import warnings
 import weakref
 from typing import TYPE_CHECKING, Callable, Mapping, Sequence
@@ -34,7 +33,7 @@ from . import petsc_options as po
 from .acceptance import Acceptance
 from .condensation import condensable
 from .newton import NewtonSolver, StepResult
-from .settings import SolverSettings, check_number, resolve_linear_solver
+from .settings import SolverSettings, check_number
 from .timings import Timings
 
 if TYPE_CHECKING:
@@ -95,8 +94,6 @@ class ContactProblem:
         user = {**po.normalize(settings.petsc), **po.normalize(petsc_options)}
         multipliers = any(p.unknowns for p in pairs)
         dual = condensable(pairs)
-        settings = dataclasses.replace(settings, linear_solver=resolve_linear_solver(
-            settings.linear_solver, dx.dof_count(u.function_space), multipliers, dual))
         po.check_solver_choice(settings, user, multipliers, condensable=dual)
         unread = po.unread(settings, user)
         if unread:

@@ -223,8 +223,8 @@ def _check_contacts(scene: Scene) -> None:
                 f"solver.linear_solver = {scene.solver.linear_solver!r} condenses the "
                 f"multipliers, which needs the dual basis; {key} (basis "
                 f"{c.basis or 'standard'!r}, method {c.method!r}) has a saddle-point "
-                "system: use 'mumps' (or 'auto'), or the mortar method's dual basis")
-        if multipliers and not condensed and setting[1] not in ("mumps", "auto"):
+                "system: use 'mumps', or the mortar method's dual basis")
+        if multipliers and not condensed and setting[1] != "mumps":
             raise SceneError(
                 f"{setting[0]} = {setting[1]!r}: cannot solve the "
                 f"saddle-point system of {key}'s multipliers (enforcement "
