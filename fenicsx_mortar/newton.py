@@ -167,7 +167,7 @@ class NewtonSolver:
         self.settings, self.pairs, self.timings = settings, list(pairs), timings
         self.u = u
         kind = system_class(self.pairs, settings.linear_solver)
-        #: the unknowns and their PETSc layout (system.py; condensation.py)
+        #: the unknowns and their PETSc layout (system.py; condensation/)
         self.system = kind(residual, jacobian, u, bcs, self.pairs, matrix, timings=timings)
         self.b, self.A, self.x = self.system.b, self.system.A, self.system.x
         self.bc_dofs = self.system.bc_dofs

@@ -66,7 +66,7 @@ def line_search_options(kind: str) -> dict[str, str]:
 
 
 #: GMRES on the condensed contact Jacobian (nonsymmetric): right preconditioning, so
-#: that the tolerance (Eisenstat–Walker's, condensation.Forcing) bounds the true residual
+#: that the tolerance (Eisenstat–Walker's, condensation/ksp.py Forcing) bounds the true residual
 _KRYLOV = {"ksp_type": "gmres", "ksp_gmres_restart": "50", "ksp_pc_side": "right",
            "ksp_norm_type": "unpreconditioned", "ksp_max_it": "1000"}
 #: the condensed path's AMG settings (docs/performance.md: chosen by measurement)
@@ -83,7 +83,7 @@ def linear_solver_options(name: str, condensed: bool = False) -> dict[str, str]:
 
     Args:
         name: The linear solver.
-        condensed: For the condensed system of dual multipliers (condensation.py): MUMPS
+        condensed: For the condensed system of dual multipliers (condensation/): MUMPS
             on it for "condensed-mumps", and the Krylov methods without a fixed tolerance
             (inexact Newton decides it).
 
@@ -322,7 +322,7 @@ def unread_message(names: Iterable[str], key: str = "petsc_options") -> str:
 
 def solver_ksp(snes: PETSc.SNES) -> PETSc.KSP:
     """The KSP that solves the linear systems: the SNES's, or, on the condensed path
-    (condensation.py: the SNES's KSP is a Python one), the inner KSP on the condensed
+    (condensation/: the SNES's KSP is a Python one), the inner KSP on the condensed
     matrix."""
     ksp = snes.getKSP()
     if ksp.getType() == PETSc.KSP.Type.PYTHON:

@@ -256,7 +256,7 @@ def system_class(pairs, linear_solver: str):
     """The system a problem's Newton solver works on: the displacements alone without
     multipliers; with them the saddle point, or — for a linear solver of the condensed path
     (``settings.CONDENSED_SOLVERS``) when every multiplier pair uses the dual basis — the
-    condensed system (condensation.py).
+    condensed system (condensation/).
 
     Args:
         pairs: The contact pairs.

@@ -1,4 +1,4 @@
-"""Condensed dual-mortar multipliers (condensation.py, docs/condensation.md).
+"""Condensed dual-mortar multipliers (fenicsx_mortar/condensation/, docs/condensation.md).
 
 * the elimination's algebra: on a random system with every per-node structure (inactive,
   frictionless active, slip, stick, a Dirichlet dof on an active node, neighbours coupled
@@ -127,9 +127,9 @@ def test_truncated_inverse_is_the_inverse_to_round_off():
     d = rng.uniform(1.0, 2.0, n)
     off = 1e-3 * rng.standard_normal((2, n - 1))
     M = sp.diags([off[0], d, off[1]], [-1, 0, 1], format="csr")
-    from fenicsx_mortar.condensation import _inverse
+    from fenicsx_mortar.condensation.inverses import inverse
     first, size = np.arange(n), np.ones(n, dtype=int)
-    W = _inverse(M, first, size)
+    W = inverse(M, first, size)
     assert np.abs((W @ M).toarray() - np.eye(n)).max() <= 1e-15
     rows, cols = W.nonzero()
     assert np.abs(rows - cols).max() <= 6

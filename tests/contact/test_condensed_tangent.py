@@ -1,4 +1,4 @@
-"""The condensed tangent is consistent (condensation.py, docs/condensation.md): along a
+"""The condensed tangent is consistent (fenicsx_mortar/condensation/, docs/condensation.md): along a
 displacement direction δu off the rows P, lifted to [δu, δλ] by the recoveries with a
 zero right-hand side (δu_P from the linearized constraints, δλ from the rows P), the
 residual's change R(x + h d) − R(x) equals h × (Kc δu) on the displacement rows outside
