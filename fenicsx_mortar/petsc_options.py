@@ -69,7 +69,8 @@ def line_search_options(kind: str) -> dict[str, str]:
 #: that the tolerance (Eisenstat–Walker's, condensation/ksp.py Forcing) bounds the true residual
 _KRYLOV = {"ksp_type": "gmres", "ksp_gmres_restart": "50", "ksp_pc_side": "right",
            "ksp_norm_type": "unpreconditioned", "ksp_max_it": "1000"}
-#: the condensed path's AMG settings (docs/performance.md: chosen by measurement)
+#: the condensed path's AMG settings (tried on the Hertz iterates while the path was
+#: developed; docs/condensation.md §3-4, §6)
 _AMG = {"gmres-gamg": {"pc_type": "gamg", "pc_gamg_type": "agg", "pc_gamg_agg_nsmooths": "1",
                        "pc_gamg_threshold": "0.02"},
         "gmres-hypre": {"pc_type": "hypre", "pc_hypre_type": "boomeramg",
