@@ -28,12 +28,13 @@ Expected result (checked at the end, to round-off unless said otherwise):
 import sys
 from pathlib import Path
 
+from mpi4py import MPI  # first: DOLFINx's pip wheel loads its MPI through mpi4py
+
 import gmsh
 import numpy as np
 import ufl
 from dolfinx import fem, io
 from dolfinx import mesh as dmesh
-from mpi4py import MPI
 from petsc4py import PETSc
 
 import fenicsx_mortar as fm

@@ -73,7 +73,8 @@ def scalar_p1_space(V):
     """The P1 scalar space of V's mesh and, for each of its local dofs, V's local unrolled
     dof of the same node's x component (``V.sub(0).collapse()``)."""
     W, parent = V.sub(0).collapse()
-    return W, np.asarray(parent, dtype=np.int64)
+    # 0.11 returns the map inside a one-element list
+    return W, np.asarray(parent, dtype=np.int64).reshape(-1)
 
 
 def tensor_dg0_space(msh: Mesh):

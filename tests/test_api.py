@@ -289,7 +289,8 @@ def test_the_command_line_reaches_the_solver_under_its_prefix(tmp_path):
     import sys
     script = tmp_path / "script.py"
     script.write_text(
-        "import sys\nimport petsc4py\npetsc4py.init(sys.argv)\n"
+        "import sys\nfrom mpi4py import MPI  # noqa: F401 (first: the pip wheel's MPICH)\n"
+        "import petsc4py\npetsc4py.init(sys.argv)\n"
         "from conftest import ROOT\n"
         "import fenicsx_mortar as fm\nfrom fenicsx_mortar import load_scene\n"
         "from fenicsx_mortar.scene.bulk import build_bulk\n"

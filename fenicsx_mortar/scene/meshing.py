@@ -298,13 +298,14 @@ def _check_areas(x: np.ndarray, cells: np.ndarray, where: str) -> None:
 
 
 def _gmsh_initialize(gmsh) -> None:
-    """gmsh.initialize keeping our SIGINT and SIGTERM handlers: gmsh >= 4.11 resets SIGINT to
-    the default unless ``interruptible=False``, gmsh 4.15 resets SIGTERM regardless (a
-    signal while meshing would kill the process without a word)."""
+    """gmsh.initialize keeping our SIGINT, SIGTERM and SIGPIPE handlers: gmsh >= 4.11 resets
+    SIGINT to the default unless ``interruptible=False``, gmsh 4.15 resets SIGTERM and SIGPIPE
+    regardless (a signal while meshing would kill the process without a word; a closed
+    stdout, ``| head``, killed the run at its next log line)."""
     import inspect
     import signal
     import threading
-    kept = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    kept = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGPIPE)}
     # no ~/.gmshrc or ~/.gmsh-options: they are scripts too, and not the scene's
     if "interruptible" in inspect.signature(gmsh.initialize).parameters:
         gmsh.initialize(readConfigFiles=False, interruptible=False)

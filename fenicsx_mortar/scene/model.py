@@ -13,13 +13,10 @@ from typing import Literal
 
 from ..settings import SolverSettings
 
-#: upper bounds of the numbers that drive memory or time (docs/scenes.md): cells of a
-#: generated mesh (estimated before meshing) or of a mesh file, load steps, cuts in a row,
-#: Gauss points per mortar segment, bulk quadrature degree, Newton iterations per solve,
-#: ALM updates per step, and the size of a scene file
-LIMITS = {"cells": 1_000_000, "steps": 100_000, "max_cuts": 50, "n_gauss": 16,
-          "quadrature_degree": 16, "max_iterations": 1000, "max_augmentations": 1000,
-          "scene_bytes": 8 << 20}
+#: upper bounds of the sizes that drive memory or time (docs/scenes.md): cells of a
+#: generated mesh (estimated before meshing) or of a mesh file, and the size of a scene file;
+#: the bounds of every other number are settings.RANGES, shared with the library API
+LIMITS = {"cells": 1_000_000, "scene_bytes": 8 << 20}
 #: the largest size of any number of a scene: products of two stay far from the largest float
 #: (1.8e308); no physical quantity in any units comes near it
 MAGNITUDE = 1e100

@@ -12,7 +12,7 @@ import re
 import warnings
 from pathlib import Path
 
-from ..settings import CONDENSED_SOLVERS
+from ..settings import CONDENSED_SOLVERS, check_number
 from .model import (LIMITS, MAGNITUDE, NAME, RAMP, MeshSource, Scene, SceneError, as_list,
                     generators)
 
@@ -231,19 +231,16 @@ def _check_contacts(scene: Scene) -> None:
                 f"{e.type!r}: zero pivots that need MUMPS's pivoting); use 'mumps', or "
                 "a condensed solver with the dual basis, or enforcement 'alm' or "
                 "'penalty'")
-        if e.epsilon is not None and not e.epsilon > 0:
-            raise SceneError(f"{key}.enforcement.epsilon = {e.epsilon}: must be positive")
-        if not e.tolerance > 0:
-            raise SceneError(f"{key}.enforcement.tolerance must be positive")
-        _check_range(e.tolerance, f"{key}.enforcement.tolerance", 1e-14, 1e-2,
-                     "a KKT residual relative to the pressure scale: below 1e-14 it is "
-                     "round-off, above 1e-2 the pressures are not converged")
-        # with multipliers there is nothing to augment; else 0 would fail every step
-        # that needs a multiplier update or a penalty raise
-        _check_range(e.max_augmentations, f"{key}.enforcement.max_augmentations",
-                     0 if multipliers else 1, LIMITS["max_augmentations"])
-        if c.friction.mu < 0:
-            raise SceneError(f"{key}.friction.mu = {c.friction.mu}: must be >= 0")
+        if e.epsilon is not None:
+            _number("epsilon", e.epsilon, f"{key}.enforcement.epsilon")
+        _number("tolerance", e.tolerance, f"{key}.enforcement.tolerance")
+        _number("max_augmentations", e.max_augmentations,
+                f"{key}.enforcement.max_augmentations")
+        if not multipliers and e.max_augmentations < 1:
+            # 0 would fail every step that needs a multiplier update or a penalty raise
+            raise SceneError(f"{key}.enforcement.max_augmentations = 0: at least 1 with "
+                             f"enforcement {e.type!r} (only multipliers need none)")
+        _number("mu", c.friction.mu, f"{key}.friction.mu")
         if c.friction.law == "none" and c.friction.mu != 0:
             raise SceneError(f"{key}.friction: mu given but law = 'none' "
                              "(use law = 'coulomb')")
@@ -256,57 +253,40 @@ def _check_contacts(scene: Scene) -> None:
                     "(20-40 Newton iterations, against ~5-11)")
             warnings.warn(f"{key}: enforcement {e.type!r} with friction {what}; prefer "
                           "'lagrange'", stacklevel=2)
-        if c.search_radius is not None and not c.search_radius > 0:
-            raise SceneError(f"{key}.search_radius = {c.search_radius}: must be positive")
-        if c.n_gauss is not None and c.n_gauss < 2:
-            raise SceneError(f"{key}.n_gauss = {c.n_gauss}: at least 2")
+        if c.search_radius is not None:
+            _number("search_radius", c.search_radius, f"{key}.search_radius")
         if c.n_gauss is not None:
-            _check_range(c.n_gauss, f"{key}.n_gauss", 2, LIMITS["n_gauss"])
+            _number("n_gauss", c.n_gauss, f"{key}.n_gauss")
 
 def _check_steps(scene: Scene) -> None:
     st = scene.steps
     if st.count is not None and st.times is not None:
         raise SceneError("steps: give 'count' or 'times', not both")
-    if st.count is not None and st.count < 1:
-        raise SceneError(f"steps.count = {st.count}: at least one load step")
     if st.count is not None:
-        _check_range(st.count, "steps.count", 1, LIMITS["steps"])
+        _number("load_steps", st.count, "steps.count")
     if st.times is not None:
         if (not st.times or st.times[0] <= 0
                 or any(b <= a for a, b in zip(st.times, st.times[1:]))):
             raise SceneError("steps.times must be a non-empty, strictly increasing list of "
                              "positive pseudo-times")
-        if len(st.times) > LIMITS["steps"]:
-            raise SceneError(f"steps.times: {len(st.times)} times, more than "
-                             f"{LIMITS['steps']} load steps")
+        _number("load_steps", len(st.times), "len(steps.times)")
     if not st.end > 0:
         raise SceneError(f"steps.end = {st.end}: must be positive")
-    if st.max_cuts < 0:
-        raise SceneError("steps.max_cuts must be >= 0")
-    _check_range(st.max_cuts, "steps.max_cuts", 0, LIMITS["max_cuts"],
-                 "each cut halves the increment: 2^-50 is round-off")
+    _number("max_cuts", st.max_cuts, "steps.max_cuts")
     if st.min_increment is not None:
-        if not st.min_increment > 0:
-            raise SceneError("steps.min_increment must be positive")
+        _number("min_increment", st.min_increment, "steps.min_increment")
         final = st.targets()[-1]
-        _check_range(st.min_increment, "steps.min_increment", 1e-12 * final, math.inf,
-                     "below 1e-12 of the final time t + dt rounds to t")
+        if st.min_increment < 1e-12 * final:
+            raise SceneError(f"steps.min_increment = {st.min_increment:g}: must be >= "
+                             f"{1e-12 * final:g} (below 1e-12 of the final time t + dt "
+                             "rounds to t)")
 
 def _check_solver(scene: Scene) -> None:
     sv = scene.solver
-    for k in ("atol", "rtol"):
-        if not getattr(sv, k) > 0:
-            raise SceneError(f"solver.{k} must be positive")
-    if not sv.rtol <= 1:
-        raise SceneError(f"solver.rtol = {sv.rtol}: must be <= 1 (a relative decrease; 1: "
-                         "none required, atol alone decides)")
-    if sv.quadrature_degree < 1:
-        raise SceneError("solver.quadrature_degree must be >= 1")
-    _check_range(sv.quadrature_degree, "solver.quadrature_degree", 1,
-                 LIMITS["quadrature_degree"], "the JIT compile time grows fast with it")
-    if sv.max_iterations < 1:
-        raise SceneError("solver.max_iterations must be >= 1")
-    _check_range(sv.max_iterations, "solver.max_iterations", 1, LIMITS["max_iterations"])
+    try:
+        sv.check("solver")
+    except ValueError as e:
+        raise SceneError(str(e)) from None
     for k, v in sv.petsc.items():
         _check_petsc_option(k, v)
 
@@ -339,10 +319,12 @@ def _check_finite(obj, key: str) -> None:
             _check_finite(v, f"{key}.{k}")
 
 
-def _check_range(value, key: str, low, high, why: str = "") -> None:
-    if not low <= value <= high:
-        bound = f">= {low:g}" if high == math.inf else f"in [{low:g}, {high:g}]"
-        raise SceneError(f"{key} = {value}: must be {bound}" + (f" ({why})" if why else ""))
+def _number(name: str, value, key: str) -> None:
+    """``value`` in ``settings.RANGES[name]``, the table the library API checks against."""
+    try:
+        check_number(name, value, key)
+    except ValueError as e:
+        raise SceneError(str(e)) from None
 
 
 def _check_name(name: str, key: str) -> None:
