@@ -173,8 +173,10 @@ def iterates(scene) -> tuple[list[np.ndarray], list]:
 
     def init(self, *args, **kwargs):
         original(self, *args, **kwargs)
+        # array_r: newer PETSc (0.9's) locks the solution for reading inside a monitor; a
+        # write access raised there and left the lock on for the step's restore
         self.newton.snes.setMonitor(lambda snes, it, fnorm: seen.append(
-            snes.getSolution().array.copy()))
+            snes.getSolution().array_r.copy()))
 
     fm_problem.ContactProblem.__init__ = init
     try:
