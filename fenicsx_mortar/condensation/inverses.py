@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from mpi4py import MPI  # noqa: F401  (before petsc4py: the PyPI wheel needs it)
 from petsc4py import PETSc
 
 #: entries of the truncated inverse W below this fraction of their row's diagonal block

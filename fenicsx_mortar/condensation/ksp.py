@@ -7,6 +7,7 @@ from __future__ import annotations
 import weakref
 from typing import TYPE_CHECKING
 
+from mpi4py import MPI  # noqa: F401  (before petsc4py: the PyPI wheel needs it)
 from petsc4py import PETSc
 
 if TYPE_CHECKING:

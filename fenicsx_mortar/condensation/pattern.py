@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
+from mpi4py import MPI  # noqa: F401  (before petsc4py: the PyPI wheel needs it)
 from petsc4py import PETSc
 
 #: band of slave nodes (along the chain) whose couplings are preallocated around a node
