@@ -30,7 +30,7 @@ from . import _dolfinx as dx
 from . import petsc_options as po
 from .linesearch import FullStepOrSecant
 from .settings import SolverSettings
-from .system import DisplacementSystem, MultiplierSystem
+from .system import system_class
 from .timings import Timings
 
 _REASON = PETSc.SNES.ConvergedReason
@@ -166,9 +166,9 @@ class NewtonSolver:
         self.residual_form, self.jacobian_form, self.bcs = residual, jacobian, bcs
         self.settings, self.pairs, self.timings = settings, list(pairs), timings
         self.u = u
-        kind = MultiplierSystem if any(p.unknowns for p in pairs) else DisplacementSystem
-        #: the unknowns and their PETSc layout (system.py)
-        self.system = kind(residual, jacobian, u, bcs, self.pairs, matrix)
+        kind = system_class(self.pairs, settings.linear_solver)
+        #: the unknowns and their PETSc layout (system.py; condensation/)
+        self.system = kind(residual, jacobian, u, bcs, self.pairs, matrix, timings=timings)
         self.b, self.A, self.x = self.system.b, self.system.A, self.system.x
         self.bc_dofs = self.system.bc_dofs
         self.monitor = ActiveSetMonitor(self.pairs)
@@ -193,8 +193,9 @@ class NewtonSolver:
         self.snes.setFunction(weak_callback(self._residual), self.b)
         self.snes.setJacobian(weak_callback(self._jacobian), self.A)
         self.snes.setConvergenceTest(weak_callback(self._converged))
-        self._options = po.Applied(prefix, settings, user)
-        self._options.set_from_options(self.snes)
+        self._options = po.Applied(prefix, settings, user,
+                                   condensed=getattr(self.system, "condensed", False))
+        self.system.configure(self.snes, self._options)
         # registered once, switched on and off (_set_precheck): PETSc ignores a NULL
         # precheck, and petsc4py's setLineSearchPreCheck(None) then leaves a dangling
         # context (a crash, seen)

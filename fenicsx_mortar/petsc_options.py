@@ -22,9 +22,10 @@ from petsc4py import PETSc
 from . import _dolfinx as dx
 from .settings import SolverSettings
 
-#: options read at a factorization, not at set-up: kept in the database while the solver
-#: lives
-FACTOR_OPTIONS = ("mat_mumps_",)
+#: options read at a factorization or a preconditioner's set-up, not at the solver's: kept
+#: in the database while the solver lives (a multigrid's level solvers are made and read
+#: their options at its first set-up)
+FACTOR_OPTIONS = ("mat_mumps_", "mg_levels_", "mg_coarse_")
 #: which live solver set a kept option last: two solvers under one prefix share the keys,
 #: and a dead one must not take the live one's options with it
 _OWNER: dict[str, object] = {}
@@ -64,18 +65,48 @@ def line_search_options(kind: str) -> dict[str, str]:
     return {"snes_linesearch_type": petsc, **{k: str(v) for k, v in extra.items()}}
 
 
-def linear_solver_options(name: str) -> dict[str, str]:
-    """The KSP and PC options of a :data:`~.settings.LINEAR_SOLVERS` name."""
+#: GMRES on the condensed contact Jacobian (nonsymmetric): right preconditioning, so
+#: that the tolerance (Eisenstat–Walker's, condensation/ksp.py Forcing) bounds the true residual
+_KRYLOV = {"ksp_type": "gmres", "ksp_gmres_restart": "50", "ksp_pc_side": "right",
+           "ksp_norm_type": "unpreconditioned", "ksp_max_it": "1000"}
+#: the condensed path's AMG settings (tried on the Hertz iterates while the path was
+#: developed; docs/condensation.md §3-4, §6)
+_AMG = {"gmres-gamg": {"pc_type": "gamg", "pc_gamg_type": "agg", "pc_gamg_agg_nsmooths": "1",
+                       "pc_gamg_threshold": "0.02"},
+        "gmres-hypre": {"pc_type": "hypre", "pc_hypre_type": "boomeramg",
+                        "pc_hypre_boomeramg_coarsen_type": "HMIS",
+                        "pc_hypre_boomeramg_interp_type": "ext+i",
+                        "pc_hypre_boomeramg_P_max": "4"}}
+
+
+def linear_solver_options(name: str, condensed: bool = False) -> dict[str, str]:
+    """The KSP and PC options of a :data:`~.settings.LINEAR_SOLVERS` name.
+
+    Args:
+        name: The linear solver.
+        condensed: For the condensed system of dual multipliers (condensation/): MUMPS
+            on it for "condensed-mumps", and the Krylov methods without a fixed tolerance
+            (inexact Newton decides it).
+
+    Returns:
+        Options without the prefix.
+    """
+    if name in _AMG and condensed:
+        return {**_KRYLOV, **_AMG[name]}
     if name == "gmres-hypre":
         return {"ksp_type": "gmres", "pc_type": "hypre", "ksp_rtol": "1e-12"}
-    return {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": name}
+    if name == "gmres-gamg":
+        return {"ksp_type": "gmres", "pc_type": "gamg", "ksp_rtol": "1e-12"}
+    lu = "mumps" if name == "condensed-mumps" else name
+    return {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": lu}
 
 
-def defaults(settings: SolverSettings) -> dict[str, str]:
-    """The package's options for ``settings``, before the user's."""
+def defaults(settings: SolverSettings, condensed: bool = False) -> dict[str, str]:
+    """The package's options for ``settings``, before the user's (``condensed``: for the
+    inner solve of the condensed system)."""
     out = {"snes_type": "newtonls", **line_search_options(settings.line_search),
            "snes_max_it": str(settings.max_iterations), "snes_max_funcs": "100000"}
-    out.update(linear_solver_options(settings.linear_solver))
+    out.update(linear_solver_options(settings.linear_solver, condensed))
     return out
 
 
@@ -85,19 +116,22 @@ class Applied:
     the object is garbage."""
 
     def __init__(self, prefix: str, settings: SolverSettings,
-                 user: Mapping[str, str]):
+                 user: Mapping[str, str], condensed: bool = False):
         self.prefix = prefix
+        self.settings = settings
         opts = PETSc.Options()
-        own = {k: v for k, v in defaults(settings).items() if not opts.hasName(prefix + k)}
+        own = {k: v for k, v in defaults(settings, condensed).items()
+               if not opts.hasName(prefix + k)}
         self.options = {**own, **user}
         self.factor_keys = [prefix + k for k in self.options if k.startswith(FACTOR_OPTIONS)]
         self._token = object()
         # (grow_workspace adds to the list; the finalizer sees it)
         self._finalizer = weakref.finalize(self, _drop, self.factor_keys, self._token)
 
-    def set_from_options(self, snes: PETSc.SNES) -> None:
-        """Put the options in the database, let SNES and KSP read them, and remove them
-        again (but the factorization options; a value the database had before returns)."""
+    def set_from_options(self, snes: PETSc.SNES, extra: Iterable = ()) -> None:
+        """Put the options in the database, let SNES and KSP (and the ``extra`` objects:
+        the condensed system's inner KSP) read them, and remove them again (but the
+        factorization options; a value the database had before returns)."""
         opts = PETSc.Options()
         before = {k: opts.getString(self.prefix + k) for k in self.options
                   if opts.hasName(self.prefix + k)}
@@ -105,6 +139,8 @@ class Applied:
             opts[self.prefix + k] = v
         snes.setFromOptions()
         snes.getKSP().setFromOptions()
+        for obj in extra:
+            obj.setFromOptions()
         for k in self.options:
             if self.prefix + k in self.factor_keys:
                 continue
@@ -138,16 +174,27 @@ def _drop(keys: list[str], token: object) -> None:
 
 
 def check_solver_choice(settings: SolverSettings, user: Mapping[str, str],
-                        multipliers: bool, key: str = "petsc_options") -> None:
+                        multipliers: bool, key: str = "petsc_options",
+                        condensable: bool = False) -> None:
     """Options that cannot work with this problem, refused by name: an SNES type other
     than Newton's (``ksponly`` does one linear solve and reports success; our convergence
     rule and the active set live in the Newton iterations), a replaced convergence test,
-    and, with multipliers (a saddle-point system with zero pivots), a factorization
-    without MUMPS's pivoting or an iterative method.
+    and, with multipliers solved as a saddle point (zero pivots), a factorization without
+    MUMPS's pivoting or an iterative method. With dual multipliers a linear solver of the
+    condensed path (``settings.CONDENSED_SOLVERS``) solves a displacement-only system:
+    any KSP and PC are taken there.
+
+    Args:
+        settings: The solver settings.
+        user: The user's options (normalized).
+        multipliers: Some pair has multipliers as unknowns.
+        key: How messages name the options.
+        condensable: Every pair with multipliers uses the dual basis.
 
     Raises:
         ValueError: naming the option.
     """
+    from .settings import CONDENSED_SOLVERS
     snes = user.get("snes_type", "newtonls")
     if snes not in NEWTON_TYPES:
         raise ValueError(f"{key}: -snes_type {snes}: the contact solver is Newton's method "
@@ -159,6 +206,13 @@ def check_solver_choice(settings: SolverSettings, user: Mapping[str, str],
                          "(residual below atol and rtol, docs/design.md §5)")
     if not multipliers:
         return
+    if settings.linear_solver in CONDENSED_SOLVERS:
+        if condensable:
+            return
+        raise ValueError(f"{key}: linear_solver = {settings.linear_solver!r} condenses the "
+                         "multipliers, which needs the dual basis on every pair with "
+                         "multipliers (mortar, basis 'dual'); with the standard basis or "
+                         "node-to-segment the saddle-point system needs 'mumps'")
     options = {**defaults(settings), **user}
     lu = options.get("pc_factor_mat_solver_type", "mumps")
     iterative = options.get("ksp_type") != "preonly" or options.get("pc_type") != "lu"
@@ -167,8 +221,9 @@ def check_solver_choice(settings: SolverSettings, user: Mapping[str, str],
                 if iterative else f"-pc_factor_mat_solver_type {lu}")
         raise ValueError(f"{key}: {what} cannot solve the saddle-point system of the "
                          "Lagrange multipliers (zero pivots that need MUMPS's pivoting, no "
-                         "preconditioner for the multiplier rows): use MUMPS, or "
-                         "enforcement 'alm' or 'penalty'")
+                         "preconditioner for the multiplier rows): use MUMPS, or with the "
+                         "dual basis a condensed linear solver ('condensed-mumps', "
+                         "'gmres-gamg', 'gmres-hypre'), or enforcement 'alm' or 'penalty'")
 
 
 #: the external packages a linear solver may name, and the option that names them
@@ -295,24 +350,41 @@ def unread_message(names: Iterable[str], key: str = "petsc_options") -> str:
 # ------------------------------------------------------------ why a linear solve failed
 
 
+def solver_ksp(snes: PETSc.SNES) -> PETSc.KSP:
+    """The KSP that solves the linear systems: the SNES's, or, on the condensed path
+    (condensation/: the SNES's KSP is a Python one), the inner KSP on the condensed
+    matrix."""
+    ksp = snes.getKSP()
+    if ksp.getType() == PETSc.KSP.Type.PYTHON:
+        inner = getattr(ksp.getPythonContext(), "inner", None)
+        if inner is not None:
+            return inner
+    return ksp
+
+
 def linear_failure(snes: PETSc.SNES) -> str:
     """Why the linear solve of the last Newton iteration failed: the KSP's reason and, for
-    a MUMPS factorization, INFOG(1) and INFOG(2); for an iterative method, its iterations
-    and residual."""
-    ksp = snes.getKSP()
+    a MUMPS factorization, INFOG(1) and INFOG(2); for an iterative method, the Newton
+    iteration, its iterations, residual and tolerance."""
+    ksp = solver_ksp(snes)
     reasons = {v: k for k, v in vars(PETSc.KSP.ConvergedReason).items() if isinstance(v, int)}
     what = reasons.get(ksp.getConvergedReason(), "unknown")
     if ksp.getType() != "preonly":
-        what += f" after {ksp.getIterationNumber()} iterations, residual " \
-                f"{ksp.getResidualNorm():.3e}"
-    return f"the linear solve failed ({what}{_mumps_info(ksp.getPC())})"
+        what += f" in Newton iteration {snes.getIterationNumber()}: " \
+                f"{ksp.getIterationNumber()} {ksp.getType()} iterations (at most " \
+                f"{ksp.getTolerances()[3]}), residual {ksp.getResidualNorm():.3e}, " \
+                f"relative tolerance {ksp.getTolerances()[0]:.1e}, preconditioner " \
+                f"{ksp.getPC().getType()}"
+    hint = "" if ksp.getType() == "preonly" else \
+        "; a smaller load increment, or solver.linear_solver = 'condensed-mumps'"
+    return f"the linear solve failed ({what}{_mumps_info(ksp.getPC())}){hint}"
 
 
 def petsc_failure(snes: PETSc.SNES, error: PETSc.Error) -> str:
     """The step's failure message for a PETSc error raised inside SNESSolve (e.g. a failed
     factorization with -ksp_error_if_not_converged)."""
     return f"PETSc error in the Newton solve: {error_message(error.ierr)}" \
-           f"{_mumps_info(snes.getKSP().getPC())}"
+           f"{_mumps_info(solver_ksp(snes).getPC())}"
 
 
 #: MUMPS INFOG(1) values that say a workspace (integer, real, or a buffer) was too small
@@ -321,7 +393,7 @@ _WORKSPACE = {-8, -9, -11, -12, -14, -15, -17, -20}
 
 def out_of_workspace(snes: PETSc.SNES) -> bool:
     """The last factorization was MUMPS's and failed for lack of workspace."""
-    return _mumps_infog(snes.getKSP().getPC())[0] in _WORKSPACE
+    return _mumps_infog(solver_ksp(snes).getPC())[0] in _WORKSPACE
 
 
 def _mumps_infog(pc) -> tuple[int, int]:

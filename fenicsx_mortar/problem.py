@@ -31,6 +31,7 @@ from mpi4py import MPI
 from . import _dolfinx as dx
 from . import petsc_options as po
 from .acceptance import Acceptance
+from .condensation import condensable
 from .newton import NewtonSolver, StepResult
 from .settings import SolverSettings, check_number
 from .timings import Timings
@@ -92,7 +93,8 @@ class ContactProblem:
                              "letters, digits and '_' (PETSc's prefix, without '-')")
         user = {**po.normalize(settings.petsc), **po.normalize(petsc_options)}
         multipliers = any(p.unknowns for p in pairs)
-        po.check_solver_choice(settings, user, multipliers)
+        dual = condensable(pairs)
+        po.check_solver_choice(settings, user, multipliers, condensable=dual)
         po.check_packages(settings, user)
         unread = po.unread(settings, user)
         if unread:

@@ -23,9 +23,12 @@ from petsc4py import PETSc
 
 from . import _dolfinx as dx
 
+#: preconditioners that take the rigid-body modes (a near-nullspace)
+AMG_TYPES = ("gamg", "hypre", "ml")
+
 
 class DisplacementSystem:
-    def __init__(self, residual, jacobian, u, bcs, pairs, matrix=None):
+    def __init__(self, residual, jacobian, u, bcs, pairs, matrix=None, timings=None):
         self.residual_form, self.jacobian_form, self.u, self.bcs = residual, jacobian, u, bcs
         self.pairs = pairs
         self.b = dx.create_vector(residual)
@@ -66,9 +69,30 @@ class DisplacementSystem:
         """PETSc objects of the system besides A, b and x (destroyed with the solver)."""
         return []
 
+    def configure(self, snes: PETSc.SNES, applied) -> None:
+        """Apply the solver options (``petsc_options.Applied``); an algebraic multigrid
+        gets the rigid-body modes as its near-nullspace."""
+        applied.set_from_options(snes)
+        pc = snes.getKSP().getPC()
+        if pc.getType() in AMG_TYPES and self.A.getNearNullSpace() is None:
+            ns = near_nullspace(self.u.function_space)
+            self.A.setNearNullSpace(ns)
+            ns.destroy()
+
 
 class MultiplierSystem(DisplacementSystem):
-    def __init__(self, residual, jacobian, u, bcs, pairs, matrix):
+    def __init__(self, residual, jacobian, u, bcs, pairs, matrix, timings=None):
+        dof_map, n_blocks, comm = self._layout(residual, jacobian, u, bcs, pairs)
+        self.A = self._matrix(matrix, dof_map, n_blocks, comm)
+        self.x = self.A.createVecRight()
+        self.b = self.A.createVecLeft()
+        self.pull(self.x)
+
+    def _layout(self, residual, jacobian, u, bcs, pairs):
+        """The extended numbering: block offsets per rank, the multiplier blocks of every
+        slave node, the local-to-global map; the pairs attached to it. Returns the map of
+        global displacement dofs to extended ones, the global block count and the
+        communicator."""
         self.residual_form, self.jacobian_form, self.u, self.bcs = residual, jacobian, u, bcs
         self.pairs = pairs
         V = u.function_space
@@ -117,10 +141,7 @@ class MultiplierSystem(DisplacementSystem):
             if p.unknowns:
                 index = np.concatenate([index, (2 * lam[:, None] + np.arange(2)).ravel()])
             p.attach(index, skip, 2 * n_blocks)
-        self.A = self._matrix(matrix, dof_map, n_blocks, comm)
-        self.x = self.A.createVecRight()
-        self.b = self.A.createVecLeft()
-        self.pull(self.x)
+        return dof_map, n_blocks, comm
 
     def _matrix(self, A_u, dof_map, n_blocks: int, comm) -> PETSc.Mat:
         """The bulk and contact pattern of ``A_u`` (a DOLFINx matrix with the predicted
@@ -216,3 +237,38 @@ class MultiplierSystem(DisplacementSystem):
 
     def owned_objects(self) -> list:
         return [self.b_u, self._lgmap]
+
+
+def near_nullspace(V) -> PETSc.NullSpace:
+    """The rigid-body modes of 2D displacements (two translations, one rotation) over the
+    owned dofs of V, in DOLFINx's layout: AMG's near-nullspace."""
+    n = dx.owned_dof_count(V) // 2
+    X = dx.dof_coordinates(V)[:n]
+    coords = PETSc.Vec().createMPI((2 * n, dx.dof_count(V)), bsize=2,
+                                   comm=V.mesh.comm)
+    coords.array[:] = X.ravel()
+    ns = PETSc.NullSpace().createRigidBody(coords)
+    coords.destroy()
+    return ns
+
+
+def system_class(pairs, linear_solver: str):
+    """The system a problem's Newton solver works on: the displacements alone without
+    multipliers; with them the saddle point, or — for a linear solver of the condensed path
+    (``settings.CONDENSED_SOLVERS``) when every multiplier pair uses the dual basis — the
+    condensed system (condensation/).
+
+    Args:
+        pairs: The contact pairs.
+        linear_solver: The (resolved) ``SolverSettings.linear_solver``.
+
+    Returns:
+        DisplacementSystem, MultiplierSystem or CondensedSystem.
+    """
+    from .settings import CONDENSED_SOLVERS
+    if not any(p.unknowns for p in pairs):
+        return DisplacementSystem
+    from .condensation import CondensedSystem, condensable
+    if linear_solver in CONDENSED_SOLVERS and condensable(pairs):
+        return CondensedSystem
+    return MultiplierSystem

@@ -16,7 +16,7 @@ LIBRARY = ("ContactPair", "ContactProblem", "LoadStepper", "SolverSettings", "St
            "SteppingResult", "StepDone", "StepStarted", "Retried", "Cut", "Timings", "solve")
 #: the core: problem, Newton, stepping, acceptance, contact kernels (never the scenes)
 CORE = ("problem", "newton", "stepping", "acceptance", "settings", "petsc_options", "system",
-        "linesearch", "timings", "contact")
+        "linesearch", "timings", "contact", "condensation")
 SCENE_LAYER = {"scene", "io", "cli", "meshes"}
 
 

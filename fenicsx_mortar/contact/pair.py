@@ -245,6 +245,16 @@ class ContactPair:
         with self._timed("contact_insertion"):
             assembly.add_to_vector(b, self.dofs, f)
 
+    def tangent(self):
+        """The pair's tangent over its local unknowns [stacked node coordinates, then its
+        multipliers] (COO, repeated entries to be summed), rows of this rank's slave nodes;
+        the first call of a load step adds the touching nodes' stiffness."""
+        st, w = self.state, self.weight
+        K = _sum([self.enforcement.tangent(st, w, self._first_jacobian),
+                  self.friction.tangent(st, w)])
+        self._first_jacobian = False
+        return K
+
     def add_jacobian(self, A: "PETSc.Mat", bc_dofs: np.ndarray) -> None:
         """Add this rank's contact tangent to the Jacobian (Dirichlet rows and columns left
         out, at the indices :meth:`attach` gave).
@@ -253,10 +263,7 @@ class ContactPair:
             A: The Jacobian matrix.
             bc_dofs: Dirichlet dofs (unused: the system's ``skip`` holds them globally).
         """
-        st, w = self.state, self.weight
-        K = _sum([self.enforcement.tangent(st, w, self._first_jacobian),
-                  self.friction.tangent(st, w)])
-        self._first_jacobian = False
+        K = self.tangent()
         with self._timed("contact_insertion"):
             assembly.add_to_matrix(A, K, self.index, self.skip, self.n_global, self.layouts)
 

@@ -121,6 +121,7 @@ def build_surface(V, facet_tags, values: int | Sequence[int], name: str,
     if cell_tags is not None:
         cell_tag[cell_tags.indices] = cell_tags.values
     rows, tags = [], []
+    vertex_dofs = dx.vertex_dofs_all(V, np.arange(dx.num_vertices(msh)))   # once: O(cells)
     for f in facets:
         v = f2v.links(f)
         p = x[v2g[v]]
@@ -129,7 +130,7 @@ def build_surface(V, facet_tags, values: int | Sequence[int], name: str,
         t = p[1] - p[0]
         if np.dot(0.5 * (p[0] + p[1]) - centroid, [-t[1], t[0]]) < 0:
             v, p = v[::-1], p[::-1]  # orient so that e₃ × t points out of the body
-        d = dx.vertex_dofs_all(V, v)
+        d = vertex_dofs[v]
         rows.append((l2g[d], p, d, d[:, 0] < n_owned_dofs, dx.global_vertices(msh, v)))
         tags.append(int(cell_tag[c]))
     gathered = comm.allgather(rows)

@@ -12,7 +12,7 @@ import re
 import warnings
 from pathlib import Path
 
-from ..settings import check_number
+from ..settings import CONDENSED_SOLVERS, check_number
 from .model import (LIMITS, MAGNITUDE, NAME, RAMP, MeshSource, Scene, SceneError, as_list,
                     generators)
 
@@ -216,12 +216,21 @@ def _check_contacts(scene: Scene) -> None:
         setting = ("solver.linear_solver", scene.solver.linear_solver) if lu == "mumps" \
             else ("solver.petsc -pc_factor_mat_solver_type", lu)
         multipliers = getattr(ENFORCEMENTS[e.type], "unknowns", 0)
-        if multipliers and setting[1] != "mumps":
+        dual = c.basis == "dual" or (c.basis is None and "dual" in METHODS[c.method].bases)
+        condensed = scene.solver.linear_solver in CONDENSED_SOLVERS
+        if multipliers and condensed and not dual:
+            raise SceneError(
+                f"solver.linear_solver = {scene.solver.linear_solver!r} condenses the "
+                f"multipliers, which needs the dual basis; {key} (basis "
+                f"{c.basis or 'standard'!r}, method {c.method!r}) has a saddle-point "
+                "system: use 'mumps', or the mortar method's dual basis")
+        if multipliers and not condensed and setting[1] != "mumps":
             raise SceneError(
                 f"{setting[0]} = {setting[1]!r}: cannot solve the "
                 f"saddle-point system of {key}'s multipliers (enforcement "
                 f"{e.type!r}: zero pivots that need MUMPS's pivoting); use 'mumps', or "
-                "enforcement 'alm' or 'penalty'")
+                "a condensed solver with the dual basis, or enforcement 'alm' or "
+                "'penalty'")
         if e.epsilon is not None:
             _number("epsilon", e.epsilon, f"{key}.enforcement.epsilon")
         _number("tolerance", e.tolerance, f"{key}.enforcement.tolerance")

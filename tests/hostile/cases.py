@@ -410,8 +410,10 @@ add(
     # without a word on the solver)
     value("superlu_dist_with_multipliers", "solver.linear_solver",
           ("solver.linear_solver", "superlu_dist")),
+    # (with the dual basis, the mortar default, "gmres-hypre" condenses the multipliers:
+    # docs/condensation.md; the standard basis keeps the saddle point)
     value("gmres_hypre_with_multipliers", "solver.linear_solver",
-          ("solver.linear_solver", "gmres-hypre")),
+          ("solver.linear_solver", "gmres-hypre"), (f"{CONTACT}.basis", "standard")),
     # t − t_prev overflows: the curve would be 0 inside the interval, silently
     value("curve_t_span_overflows", "curves.c.t", CURVE,
           ("curves.c.t", [-1.7e308, 1.7e308]), ("curves.c.value", [0.0, 1.0]),
@@ -549,9 +551,10 @@ PETSC = [
 ]
 add(*(value(f"petsc_{id}", key, ("solver", {"petsc": opts}), hazard=hz)
       for id, key, opts, hz in PETSC))
-# hypre with multipliers, whatever the LU key says
+# hypre with multipliers of the standard basis (not condensed), whatever the LU key says
 add(value("petsc_hypre_despite_mumps_key", "gmres-hypre", ("solver", {
-    "linear_solver": "gmres-hypre", "petsc": {"-pc_factor_mat_solver_type": "mumps"}})))
+    "linear_solver": "gmres-hypre", "petsc": {"-pc_factor_mat_solver_type": "mumps"}}),
+    (f"{CONTACT}.basis", "standard")))
 
 # -- groups: empty lists, repeats, two bodies on one region, conflicting supports ----------
 add(
