@@ -250,6 +250,11 @@ def pressure_difference(r: dict, runs: list[dict]) -> tuple[float, str] | None:
     return None
 
 
+#: the phases of the table; the library times bulk assembly and the linear solve by wall
+#: clock only (newton.py), so their CPU column is "—"
+PHASES = ("bulk_assembly", "contact", "linear_solve")
+
+
 def table(runs: list[dict]) -> str:
     head = ("| case | dofs | solver | N | Newton | linear its / Newton step (mean, max) "
             "| s / Newton | bulk / contact / linear solve, s / Newton (wall) "
@@ -263,16 +268,17 @@ def table(runs: list[dict]) -> str:
         its = r["linear_its"]
         diff = pressure_difference(r, runs)
         lines.append(
-            f"| {r['case']} | {r['dofs']:,} | {r['solver']} | {r['ranks']} | {r['newton']} "
+            f"| {r['case']} | {r['dofs']:,} "
+            f"| {r['solver'] if r['converged'] else r['solver'] + ' (did not complete)'} "
+            f"| {r['ranks']} | {r['newton']} "
             f"| {sum(its) / len(its):.1f}, {max(its)} "
             f"| {r['s_per_newton']:.2f} "
             f"| {w.get('bulk_assembly', 0) / n:.2f} / {w.get('contact', 0) / n:.2f} / "
             f"{w.get('linear_solve', 0) / n:.2f} "
-            f"| {c.get('bulk_assembly', 0) / n:.2f} / {c.get('contact', 0) / n:.2f} / "
-            f"{c.get('linear_solve', 0) / n:.2f} "
+            f"| {' / '.join(f'{c[k] / n:.2f}' if k in c else '—' for k in PHASES)} "
             f"| {r['assembly_s']:.2f} | {r['s_per_newton'] / r['assembly_s']:.1f} "
             f"| {r['peak_mib']:.0f} | {r['total_s']:.0f} "
-            f"| {'—' if diff is None else f'{diff[0]:.1e} ({diff[1]})'} "
+            f"| {'—' if diff is None or not r['converged'] else f'{diff[0]:.1e} ({diff[1]})'} "
             f"| {r['load_average_at_end'][0]:.1f} |")
     return "\n".join(lines)
 
