@@ -147,10 +147,24 @@ def test_solver_settings_are_checked_by_name(slab, field, value):
         new_problem(slab, settings=settings)
 
 
-def test_an_option_petsc_never_reads_is_reported(slab):
-    with pytest.warns(UserWarning, match="-snes_monitr: not read by PETSc"):
-        problem, _, _ = new_problem(slab, petsc_options={"snes_monitr": None})
+def _unread_warnings(slab, options):
+    """The 'not read by PETSc' warnings of building a problem with ``options``, and the
+    problem's SNES max_it."""
+    import warnings
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        problem, _, _ = new_problem(slab, petsc_options=options)
+    max_it = problem.solver.getTolerances()[3]
     problem.close()
+    return [str(w.message) for w in seen if "not read by PETSc" in str(w.message)], max_it
+
+
+def test_an_option_petsc_never_reads_is_reported(slab):
+    """A misspelt option is named in one warning; spelt right, it is read, silently."""
+    unread, _ = _unread_warnings(slab, {"snes_monitr": None})
+    assert len(unread) == 1 and "-snes_monitr: not read by PETSc" in unread[0]
+    unread, max_it = _unread_warnings(slab, {"snes_max_it": 7})
+    assert unread == [] and max_it == 7
 
 
 @pytest.mark.parametrize("kw, match", [({"times": [0.5, 0.25]}, "strictly increasing"),
