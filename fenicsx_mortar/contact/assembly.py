@@ -371,9 +371,12 @@ class _Pattern:
     (the usual case between Newton iterations) the values are summed into it with one
     bincount instead of a fresh COO → CSR conversion (sort). The CSR holds the touched
     rows only (``rows``: their global numbers), not the whole ownership range: PETSc then
-    visits a few hundred rows instead of every local row."""
+    visits a few hundred rows instead of every local row. It keeps the matrix's ownership
+    range, not the matrix: a reference would keep the matrix alive on the ranks that cache
+    a layout and not on the others, and PETSc's next collective creation on that
+    communicator then deadlocks (one rank duplicates the communicator, the other not)."""
 
-    __slots__ = ("A", "dofs", "skip", "row", "col", "sel", "slot", "indptr", "indices",
+    __slots__ = ("range", "dofs", "skip", "row", "col", "sel", "slot", "indptr", "indices",
                  "rows")
 
 
@@ -383,7 +386,8 @@ def add_to_matrix(A: PETSc.Mat, K: sp.spmatrix, dofs: np.ndarray, skip: np.ndarr
     (the matrix keeps identity rows/columns there)."""
     K = K.tocoo()
     pat = lay.insertion
-    if (pat is not None and pat.A is A and pat.dofs is dofs and pat.skip is skip
+    r0, r1 = A.getOwnershipRange()
+    if (pat is not None and pat.range == (r0, r1) and pat.dofs is dofs and pat.skip is skip
             and np.array_equal(pat.row, K.row) and np.array_equal(pat.col, K.col)):
         vals = np.bincount(pat.slot, weights=K.data[pat.sel], minlength=pat.indices.shape[0])
         A.setValuesIJV(pat.indptr, pat.indices, vals, addv=PETSc.InsertMode.ADD,
@@ -391,7 +395,6 @@ def add_to_matrix(A: PETSc.Mat, K: sp.spmatrix, dofs: np.ndarray, skip: np.ndarr
         return
     out = _skipped(dofs, skip, lay)
     structural = ~out[K.row] & ~out[K.col]
-    r0, r1 = A.getOwnershipRange()
     r = dofs[K.row]
     if np.all((r[structural] >= r0) & (r[structural] < r1)):
         # serial (or all rows owned): remember the layout of all structural entries (explicit
@@ -406,7 +409,7 @@ def add_to_matrix(A: PETSc.Mat, K: sp.spmatrix, dofs: np.ndarray, skip: np.ndarr
         indptr = np.zeros(rows.shape[0] + 1, dtype=PETSc.IntType)
         np.cumsum(count, out=indptr[1:])
         pat = _Pattern()
-        pat.A, pat.dofs, pat.skip = A, dofs, skip
+        pat.range, pat.dofs, pat.skip = (r0, r1), dofs, skip
         pat.row, pat.col = K.row.copy(), K.col.copy()
         pat.sel, pat.slot = sel, slot
         pat.indptr, pat.indices = indptr, (uniq % n_global).astype(PETSc.IntType)
