@@ -1,9 +1,11 @@
 """How PETSc drives the condensed system: the SNES's KSP (a Python KSP doing one condensed
-solve), the Jacobian over [u, λ] as a Python matrix, and the Eisenstat–Walker forcing
-terms that set a Krylov inner solve's tolerance.
+solve), the Jacobian over [u, λ] as a Python matrix, the Eisenstat–Walker forcing
+terms that set a Krylov inner solve's tolerance, and when a Krylov solve rebuilds its
+preconditioner.
 """
 from __future__ import annotations
 
+import math
 import weakref
 from typing import TYPE_CHECKING
 
@@ -53,6 +55,80 @@ class Forcing:
         eta = min(max(eta, self.eta_min, floor), self.eta_max)
         self._last = (fnorm, eta)
         return eta
+
+
+class Lag:
+    """When a Krylov solve rebuilds its preconditioner (an AMG set-up costs about as much as
+    the iterations it saves between Newton iterations, where Kc changes little): kept while
+    the solve's convergence rate, in decades per Krylov iteration, stays above ``keep`` ×
+    that of the solve that built it; rebuilt after a slower or failed solve and when Kc's
+    pattern grew. A solve with a kept preconditioner is stopped at twice the iterations a
+    fresh one would take (:meth:`budget`) and done again with a fresh one: a stale
+    preconditioner (a moving contact set) costs at most that. The decisions read global
+    norms only, so every rank takes the same.
+    """
+
+    keep = 0.5
+
+    def __init__(self):
+        self._rate0 = 0.0
+        self.reuse = False
+
+    @staticmethod
+    def rate(start: float, end: float, its: int) -> float:
+        """Decades of residual reduction per iteration."""
+        if its <= 0 or start <= 0.0:
+            return math.inf
+        return math.log10(start / max(end, 1e-300)) / its
+
+    def budget(self, rtol: float) -> int:
+        """Iterations allowed to a solve with the kept preconditioner, to ``rtol``."""
+        return int(math.ceil(2.0 * math.log10(1.0 / rtol) / self._rate0)) + 5
+
+    def update(self, start: float, end: float, its: int, failed: bool, fresh: bool) -> None:
+        """Record a solve: residual norms at its start and end, iterations, failure, and
+        whether it built its preconditioner."""
+        r = self.rate(start, end, its)
+        if fresh:
+            self._rate0 = r
+        self.reuse = not failed and r >= self.keep * self._rate0
+
+    def rebuild(self) -> None:
+        """The next solve builds its preconditioner anew (Kc is a new matrix)."""
+        self.reuse = False
+
+
+def solve_lagged(ksp: PETSc.KSP, lag: Lag | None, f: PETSc.Vec, y: PETSc.Vec) -> tuple[int, int]:
+    """y = A⁻¹ f by ``ksp`` from a zero guess, keeping its preconditioner while ``lag``
+    says it serves; a kept one stopped at its budget is replaced by a fresh one.
+
+    Args:
+        ksp: The KSP (its operator may have changed since its last solve).
+        lag: The preconditioner's record, or None: always rebuilt when A changed.
+        f: The right-hand side.
+        y: The solution (overwritten).
+
+    Returns:
+        The Krylov iterations of both attempts, and the KSP's converged reason.
+    """
+    if lag is None:
+        y.set(0.0)
+        ksp.solve(f, y)
+        return ksp.getIterationNumber(), ksp.getConvergedReason()
+    rtol, _, _, max_it = ksp.getTolerances()
+    start, its = f.norm(), 0
+    for fresh in ((False, True) if lag.reuse else (True,)):
+        ksp.getPC().setReusePreconditioner(not fresh)
+        ksp.setTolerances(max_it=max_it if fresh else min(max_it, lag.budget(rtol)))
+        y.set(0.0)
+        ksp.solve(f, y)
+        its += ksp.getIterationNumber()
+        reason = ksp.getConvergedReason()
+        if reason >= 0:
+            break
+    ksp.setTolerances(max_it=max_it)
+    lag.update(start, ksp.getResidualNorm(), ksp.getIterationNumber(), reason < 0, fresh)
+    return its, reason
 
 
 class CondensedKSP:

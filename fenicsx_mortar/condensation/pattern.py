@@ -17,7 +17,9 @@ PREDICTED_BAND = 4
 class KcPattern:
     """Kc's pattern, for :class:`~.system.CondensedSystem` (which holds the layout these
     methods read: ``comm``, ``skip_u``, ``n_global_u``, ``_lam_pairs``, ``_watch``,
-    ``_lgmap_u``, ``_nullspace``, and ``Kc``, ``inner`` for :meth:`_grow`)."""
+    ``_lgmap_u``, ``_nullspace``, and ``Kc``, ``inner``, ``lag`` for :meth:`_grow`)."""
+
+    lag = None
 
     def _predicted(self, indptr, indices, r0):
         """Owned (row, column) slots the condensation will likely fill, and the rows it can
@@ -97,6 +99,8 @@ class KcPattern:
         self.Kc = J
         self.inner.setOperators(J)
         self._f, self._y = J.createVecs()
+        if self.lag is not None:
+            self.lag.rebuild()
 
     def _missing(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
         """Which owned slots (rows, cols) the pattern lacks (True where missing)."""

@@ -16,7 +16,7 @@ from ..system import MultiplierSystem, near_nullspace
 from ..timings import Timings
 from .elimination import Elimination
 from .inverses import below_round_off
-from .ksp import CondensedKSP, Forcing, SaddleOperator
+from .ksp import CondensedKSP, Forcing, Lag, SaddleOperator, solve_lagged
 from .pattern import KcPattern
 
 
@@ -102,6 +102,8 @@ class CondensedSystem(KcPattern, MultiplierSystem):
         self._f, self._y = self.Kc.createVecs()
         #: Eisenstat–Walker forcing for a Krylov inner solve (set by configure)
         self.forcing: Forcing | None = None
+        #: when a Krylov inner solve rebuilds its preconditioner (set by configure)
+        self.lag: Lag | None = None
         self.last_solve = {"iterations": 0, "reason": 0, "residual": 0.0, "rtol": 0.0}
 
     # -- the Jacobian -------------------------------------------------------------------
@@ -270,10 +272,7 @@ class CondensedSystem(KcPattern, MultiplierSystem):
         if self.forcing is not None:
             self.inner.setTolerances(rtol=self.forcing.rtol(b.norm(), fnorm_iteration))
         y = self._y
-        y.set(0.0)
-        self.inner.solve(f, y)
-        reason = self.inner.getConvergedReason()
-        its = self.inner.getIterationNumber()
+        its, reason = solve_lagged(self.inner, self.lag, f, y)
         self._fill_P(y, b_lam[elim.H])
         self.last_solve = {"iterations": its, "reason": int(reason),
                            "residual": float(self.inner.getResidualNorm()),
@@ -359,9 +358,10 @@ class CondensedSystem(KcPattern, MultiplierSystem):
         self.inner.setOptionsPrefix(prefix)
         applied.set_from_options(snes, extra=[self.inner])
         # a Krylov inner solve without a tolerance of the user's: inexact Newton
+        krylov = self.inner.getType() != PETSc.KSP.Type.PREONLY
         self.forcing = (Forcing(applied.settings.atol)
-                        if self.inner.getType() != PETSc.KSP.Type.PREONLY
-                        and "ksp_rtol" not in applied.options else None)
+                        if krylov and "ksp_rtol" not in applied.options else None)
+        self.lag = Lag() if krylov else None
 
 
 def _compress(A: sp.csr_matrix, cols: np.ndarray) -> sp.csr_matrix:
