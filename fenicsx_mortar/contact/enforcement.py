@@ -151,6 +151,13 @@ class Enforcement:
         return assembly.normal_tangent(st, -law.dp_dg * act, law.dp_dA * act, law.p * weight)
 
     # -- between Newton solves and steps ----------------------------------------------
+    def update_due(self, g: np.ndarray, A: np.ndarray, p: np.ndarray, tangential,
+                   fnorm: float) -> bool:
+        """Within a Newton solve, at an iterate with residual norm ``fnorm``: True to stop
+        the solve there and :meth:`augment` (an inexact Uzawa step). None here: a method
+        without multiplier updates needs the converged solve."""
+        return False
+
     def augment(self, g: np.ndarray, A: np.ndarray, p: np.ndarray, tangential=None) -> bool:
         """Between converged Newton solves; True when another solve is needed.
 
@@ -219,8 +226,10 @@ class AugmentedLagrangian(Enforcement):
     With friction the stick stays penalty-regularized (elastic slip t/ε_T, the moving cone
     of :mod:`.friction`): the paper's method. :class:`AugmentedLagrangianStick` augments
     the tangential traction too."""
-    growth, max_growth = 10.0, 100.0
-    tangential_growth = 30.0
+    growth, max_growth = 10.0, 1000.0
+    stall = 0.01
+    forcing = 0.5
+    tangential_growth = 300.0
     #: whether the tangential traction has its own Uzawa multiplier t̂ (exact stick)
     augments_traction = False
 
@@ -264,6 +273,21 @@ class AugmentedLagrangian(Enforcement):
         ct = self._tangential(p, tangential)
         return float(c if ct is None else max(c, ct.max(initial=0.0)))
 
+    def update_due(self, g: np.ndarray, A: np.ndarray, p: np.ndarray, tangential,
+                   fnorm: float) -> bool:
+        """Inexact Uzawa: an update changes the nodal forces by (p_j − p̂_j) A_j (and
+        (t_j − t̂_j) A_j), so the next solve starts with a residual of about their norm;
+        converging the present solve far below it is wasted. Stop once the residual is
+        below ``forcing`` times it and the KKT conditions do not hold: the update follows.
+        (The step ends only after a solve converged by Newton's own rule.)"""
+        seen = A > 0
+        jump = np.where(seen, (p - self.multiplier) * A, 0.0)
+        if tangential is not None and self.augments_traction:
+            jump = np.hypot(jump, np.where(seen, (tangential.t - self.traction) * A, 0.0))
+        if fnorm > self.forcing * float(np.linalg.norm(jump)):
+            return False
+        return self.kkt_residual(g, A, p, tangential) > self.tolerance
+
     def augment(self, g: np.ndarray, A: np.ndarray, p: np.ndarray, tangential=None) -> bool:
         c = self.complementarity(g, A, p, 0.0 if tangential is None else self.gap_noise(A))
         ct = self._tangential(p, tangential)
@@ -279,7 +303,7 @@ class AugmentedLagrangian(Enforcement):
         if seen.any():
             cap = self.max_growth * self.epsilon0 * np.maximum(
                 1.0, np.median(A[seen]) / np.where(seen, A, np.inf))
-            stall = (c > self.tolerance) & (c > 0.1 * self._last)
+            stall = (c > self.tolerance) & (c > self.stall * self._last)
             self.epsilon = np.where(stall, np.minimum(self.epsilon * self.growth, cap),
                                     self.epsilon)
         self._last = c

@@ -308,6 +308,14 @@ class ContactPair:
             return None
         return st.active.astype(np.int8) + self.friction.decision(st)
 
+    def update_due(self, fnorm: float) -> bool:
+        """Within a Newton solve: whether the enforcement would rather update its
+        multipliers now than have the solve converge (inexact Uzawa), the residual norm
+        being ``fnorm``."""
+        st = self.state
+        return st is not None and self.enforcement.update_due(st.g, st.A, st.p,
+                                                               st.tangential, fnorm)
+
     # -- step lifecycle -------------------------------------------------------------------
     def augment(self) -> bool:
         """Between converged Newton solves: update the enforcement (Uzawa, ε continuation);
