@@ -312,15 +312,15 @@ class NewtonSolver:
         small = fnorm <= s.atol and (fnorm <= s.rtol * self._r0 or self._r0 <= s.atol)
         if small:
             return _REASON.CONVERGED_FNORM_ABS
-        if it > 0 and self._inexact and any([p.update_due(fnorm) for p in self.pairs]):
-            # inexact Uzawa (enforcement.update_due): not the rule's reason, so the
-            # acceptance check never takes this state for a converged one
-            return _REASON.CONVERGED_FNORM_RELATIVE
         # cycling guard: an active set (or stick/slip state) that comes back is a loop Newton
         # will not leave; stop now and let the step be cut, saying which nodes flip
         self._cycle = self.monitor.cycling(fnorm)
         if self._cycle:
             return _REASON.DIVERGED_INNER
+        if it > 0 and self._inexact and any([p.update_due(fnorm) for p in self.pairs]):
+            # inexact Uzawa (enforcement.update_due): not the rule's reason, so the
+            # acceptance check never takes this state for a converged one
+            return _REASON.CONVERGED_FNORM_RELATIVE
         if it >= s.max_iterations:
             return _REASON.DIVERGED_MAX_IT
         return _REASON.ITERATING
