@@ -317,7 +317,8 @@ class NewtonSolver:
         self._cycle = self.monitor.cycling(fnorm)
         if self._cycle:
             return _REASON.DIVERGED_INNER
-        if it > 0 and self._inexact and any([p.update_due(fnorm) for p in self.pairs]):
+        if it > 0 and self._inexact and any(
+                [p.update_due(fnorm, self.history[0]) for p in self.pairs]):
             # inexact Uzawa (enforcement.update_due): not the rule's reason, so the
             # acceptance check never takes this state for a converged one
             return _REASON.CONVERGED_FNORM_RELATIVE
