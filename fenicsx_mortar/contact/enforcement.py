@@ -219,13 +219,15 @@ class AugmentedLagrangian(Enforcement):
     robust and many updates would follow. Node by node, when an update gains less than a
     factor 100 (``stall``), ε_j grows ×10, up to 100 ε₀ max(1, Ā/A_j) (Ā the median nodal
     area) while the active and stick/slip sets still change between updates, up to
-    1000 ε₀ max(1, Ā/A_j) once an update left them as they were: a node whose support only
+    300 ε₀ max(1, Ā/A_j) once an update left them as they were: a node whose support only
     partly sees the master (a slave sliding past the master's end) has a small A_j and
     needs the larger ε_j for the same rate, while round-off in ε_j g̃_j stays at the level
     of the other nodes. Measured on Cattaneo-Mindlin (docs/friction.md, "Partial slip"):
     the update of the stiffest multiplier mode gains 1/(1 + 0.09 ε_j/ε₀), one decade at
-    100 ε₀ (the old cap: 15-25 updates a step), two at 1000 ε₀; with 1000 ε₀ also while
-    the sets change, B5's first step cycled to the step floor. The later solves start next
+    100 ε₀ (the old cap: 15-25 updates a step), 1.4 at 300 ε₀; with 1000 ε₀ while the sets
+    change B5's first step cycled to the step floor, and with 1000 ε₀ once they stay the
+    Newton residual of B3 (half-rings) stalled at 2e-9, round-off in ε_j g̃_j over the
+    tolerance 1e-9 (300 ε₀: the same Cattaneo-Mindlin cost). The later solves start next
     to the answer, where a stiff ε does no harm. A start stiffer than the bodies makes the
     first Newton solve fragile (Hertz at h = a/4 fails from 10 E/h): ε₀ is at most the
     pair's E/h (``start``).
@@ -240,7 +242,7 @@ class AugmentedLagrangian(Enforcement):
     the tangential traction too."""
     #: ε_j ×growth where an update gained less than 1/stall; caps in ε₀ while the active
     #: and stick/slip sets change (max_growth) and once they stay (settled_growth)
-    growth, stall, max_growth, settled_growth = 10.0, 0.01, 100.0, 1000.0
+    growth, stall, max_growth, settled_growth = 10.0, 0.01, 100.0, 300.0
     #: ε_T's caps in ε₀: a node sticking that was in contact at the last step's end gets
     #: the larger (see annotate)
     tangential_growth, settled_tangential_growth = 30.0, 300.0
