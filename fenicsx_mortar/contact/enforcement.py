@@ -436,7 +436,7 @@ class AugmentedLagrangianStick(AugmentedLagrangian):
     t̂ ← t with p̂ ← p after each solve, so stick converges to zero slip instead of the
     elastic slip t/ε_T; the KKT residual includes the friction's. It reaches the
     multipliers' answer (with the dual basis, the same discrete one), at ~8 augmentations
-    and 10-15 Newton iterations a step (docs/friction.md, "Partial slip")."""
+    and 11-15 Newton iterations a step (docs/friction.md, "Partial slip")."""
     augments_traction = True
 
 

@@ -109,7 +109,7 @@ def test_augmented_lagrangian_cost(augmented):
     """Issue 31's target for the ALM at every level, here at a/10: ≤ 12 Newton iterations
     a step on average over the seven steps (every solve of a step: the inexact ones before
     an update and the converged last), no step cut, and the stick zone within 5 % of
-    √(1 − Q/(μP)). Measured 10.7 (at most 14) with 7.7 updates a step; 26 (29) with plain
+    √(1 − Q/(μP)). Measured 10.6 (at most 14) with 7.7 updates a step; 26 (29) with plain
     Uzawa updates at ε ≤ 100 ε₀ and converged solves (docs/friction.md)."""
     scene, states = augmented
     k = cm.constants(scene)
