@@ -178,6 +178,8 @@ class NewtonSolver:
         #: the largest first residual of a load step so far (the relative test's reference)
         self._r_ref = 0.0
         self._cycle: str | None = None
+        #: whether a solve may stop early for the pairs' multiplier update (update_due)
+        self._inexact = False
         #: a converged state's last check (acceptance.py): a reason it is not, or None
         self.accept: Callable[[NewtonSolver], str | None] = lambda newton: None
         comm = u.function_space.mesh.comm
@@ -315,6 +317,11 @@ class NewtonSolver:
         self._cycle = self.monitor.cycling(fnorm)
         if self._cycle:
             return _REASON.DIVERGED_INNER
+        if it > 0 and self._inexact and any(
+                [p.update_due(fnorm, self.history[0]) for p in self.pairs]):
+            # inexact Uzawa (enforcement.update_due): not the rule's reason, so the
+            # acceptance check never takes this state for a converged one
+            return _REASON.CONVERGED_FNORM_RELATIVE
         if it >= s.max_iterations:
             return _REASON.DIVERGED_MAX_IT
         return _REASON.ITERATING
@@ -341,6 +348,7 @@ class NewtonSolver:
         self._collect_garbage()
         res = StepResult(converged=False)
         self.begin_step()
+        self._inexact = True
         for aug in range(max_augmentations + 1):
             self.history = []
             self._cycle = None
@@ -375,6 +383,11 @@ class NewtonSolver:
                 return res
             self._set_iterate(self.x)
             if not any([p.augment() for p in self.pairs]):
+                if not self.converged_by_rule():
+                    # an inexact solve whose state turned out to hold the KKT conditions:
+                    # the step ends only after a converged one
+                    self._inexact = False
+                    continue
                 res.reason = self.accept(self) or ""
                 res.converged, res.augmentations = not res.reason, aug
                 return res

@@ -308,6 +308,14 @@ class ContactPair:
             return None
         return st.active.astype(np.int8) + self.friction.decision(st)
 
+    def update_due(self, fnorm: float, first: float) -> bool:
+        """Within a Newton solve: whether the enforcement would rather update its
+        multipliers now than have the solve converge (inexact Uzawa), the residual norm
+        being ``fnorm``, ``first`` at the solve's start."""
+        st = self.state
+        return st is not None and self.enforcement.update_due(st.g, st.A, st.p,
+                                                               st.tangential, fnorm, first)
+
     # -- step lifecycle -------------------------------------------------------------------
     def augment(self) -> bool:
         """Between converged Newton solves: update the enforcement (Uzawa, ε continuation);

@@ -249,8 +249,8 @@ def _check_contacts(scene: Scene) -> None:
             what = ("keeps the stick penalty-regularized (elastic slip): partial-slip "
                     "tractions come out wrong (the stick zone up to +30 % wide); "
                     "'alm-stick' augments the traction too" if e.type == "alm" else
-                    "reaches the answer of 'lagrange' at ~10-25 augmentations a step "
-                    "(20-40 Newton iterations, against ~5-11)")
+                    "reaches the answer of 'lagrange' at ~8-11 augmentations a step "
+                    "(11-15 Newton iterations, against ~5-9)")
             warnings.warn(f"{key}: enforcement {e.type!r} with friction {what}; prefer "
                           "'lagrange'", stacklevel=2)
         if c.search_radius is not None:
