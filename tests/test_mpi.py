@@ -208,7 +208,8 @@ def compare_records(steps_a: list[dict], steps_b: list[dict], diff: Diff) -> Non
 HALF_RINGS_ITERATIONS = (
     "frictional half-rings with the Uzawa ALM: the converged states agree to 5e-11, but a "
     "step's Newton iterations differ by 1 in most parallel runs, not all (10 of 12 runs at "
-    "n=2, 7 of 9 at n=3): serial [30, 30, 32, 27], n=2 [30, 30, 32|33, 27|28], n=3 [30, 30, 32|33, "
+    "n=2, 7 of 9 at n=3; counted with converged Uzawa solves, before the inexact updates of "
+    "issue 31, which still differ): serial [30, 30, 32, 27], n=2 [30, 30, 32|33, 27|28], n=3 [30, 30, 32|33, "
     "27|28]; it varies from run to run (MUMPS in parallel is not bitwise reproducible). Two "
     "round-off ties: (1) friction.Coulomb.traction classifies slip by "
     "|eps_T g_T| - mu p > 0, and at the first iterate of a step every node that slipped in "

@@ -310,8 +310,15 @@ class ContactPair:
 
     def update_due(self, fnorm: float, first: float) -> bool:
         """Within a Newton solve: whether the enforcement would rather update its
-        multipliers now than have the solve converge (inexact Uzawa), the residual norm
-        being ``fnorm``, ``first`` at the solve's start."""
+        multipliers now than have the solve converge (inexact Uzawa).
+
+        Args:
+            fnorm: The residual norm at the present iterate.
+            first: The residual norm at the solve's start.
+
+        Returns:
+            True to stop the solve here for the update (never for a law without one).
+        """
         st = self.state
         return st is not None and self.enforcement.update_due(st.g, st.A, st.p,
                                                                st.tangential, fnorm, first)
