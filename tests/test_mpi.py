@@ -230,11 +230,16 @@ def test_mpi_equals_serial(scene, ranks, tol, runs):
     compare(serial, parallel, diff)
     report = ", ".join(f"{k} {v:.1e}" for k, v in sorted(diff.worst.items()))
     print(f"{scene} n={ranks}: {report}; {'; '.join(diff.mismatch) or 'counts equal'}")
-    if scene == "half_rings_alm":  # iterations may differ by one (HALF_RINGS_ITERATIONS)
+    if scene == "half_rings_alm":
+        # round-off ties decide a Newton iteration (HALF_RINGS_ITERATIONS) and, since the
+        # inexact Uzawa updates (issue 31), where a solve stops for an update: a step's
+        # Newton iterations may differ by two and its updates by one; the converged
+        # states still agree to tol (below)
         its = [(s["newton_iterations"], t["newton_iterations"])
                for s, t in zip(serial[1]["steps"], parallel[1]["steps"])]
-        assert all(abs(a - b) <= 1 for a, b in its), its
-        diff.mismatch = [m for m in diff.mismatch if "newton_iterations:" not in m]
+        assert all(abs(a - b) <= 2 for a, b in its), its
+        diff.mismatch = [m for m in diff.mismatch
+                         if "newton_iterations:" not in m and "augmentations:" not in m]
     assert not diff.mismatch, "; ".join(diff.mismatch[:8])
     assert max(diff.worst.values()) <= tol, f"relative differences: {report}"
 
