@@ -98,12 +98,15 @@ class AugmentedLagrangian(Enforcement):
         scale = p.max(initial=0.0)
         return tangential.kkt / scale if scale > 0 else tangential.kkt
 
+    def _kkt(self, g: np.ndarray, A: np.ndarray, p: np.ndarray, tangential) -> np.ndarray:
+        """Per node: the larger of the normal and the friction's complementarity."""
+        c = self.complementarity(g, A, p, 0.0 if tangential is None else self.gap_noise(A))
+        ct = self._tangential(p, tangential)
+        return c if ct is None else np.maximum(c, ct)
+
     def kkt_residual(self, g: np.ndarray, A: np.ndarray, p: np.ndarray,
                      tangential=None) -> float:
-        noise = 0.0 if tangential is None else self.gap_noise(A)
-        c = self.complementarity(g, A, p, noise).max(initial=0.0)
-        ct = self._tangential(p, tangential)
-        return float(c if ct is None else max(c, ct.max(initial=0.0)))
+        return float(self._kkt(g, A, p, tangential).max(initial=0.0))
 
     def update_due(self, g: np.ndarray, A: np.ndarray, p: np.ndarray, tangential,
                    fnorm: float, first: float) -> bool:
@@ -129,10 +132,7 @@ class AugmentedLagrangian(Enforcement):
     def augment(self, g: np.ndarray, A: np.ndarray, p: np.ndarray, tangential=None) -> bool:
         if tangential is not None:
             self._solve_status = tangential.status.astype(np.int8)
-        c = self.complementarity(g, A, p, 0.0 if tangential is None else self.gap_noise(A))
-        ct = self._tangential(p, tangential)
-        if ct is not None:
-            c = np.maximum(c, ct)
+        c = self._kkt(g, A, p, tangential)
         if c.max(initial=0.0) <= self.tolerance:
             return False
         stick = tangential is not None and self.augments_traction
