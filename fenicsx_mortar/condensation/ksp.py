@@ -62,17 +62,24 @@ class Lag:
     the iterations it saves between Newton iterations, where Kc changes little): kept while
     the solve's convergence rate, in decades per Krylov iteration, stays above ``keep`` ×
     that of the solve that built it; rebuilt after a slower or failed solve and when Kc's
-    pattern grew. A solve with a kept preconditioner is stopped at twice the iterations a
-    fresh one would take (:meth:`budget`) and done again with a fresh one: a stale
-    preconditioner (a moving contact set) costs at most that. The decisions read global
-    norms only, so every rank takes the same.
+    pattern grew. A solve with a kept preconditioner is stopped at 1/``keep`` times the
+    iterations a fresh one would take (:meth:`budget`) and done again with a fresh one: a stale
+    preconditioner (a moving contact set) costs at most that. A fresh preconditioner slower
+    than ``slow`` decades per iteration, or failing, makes the record :attr:`weak` (its
+    solve stopped at that rate's budget): a direct solve serves better (:func:`direct_ksp`).
+    The decisions read global norms only, so every rank takes the same.
+
+    Args:
+        keep: The fraction of the fresh rate below which the preconditioner is rebuilt.
+        slow: The fresh rate below which the preconditioner is weak (0: never).
     """
 
-    keep = 0.5
-
-    def __init__(self):
+    def __init__(self, keep: float = 0.5, slow: float = 0.1):
+        self.keep, self.slow = keep, slow
         self._rate0 = 0.0
         self.reuse = False
+        self.weak = False
+        self.last_rate = math.inf
 
     @staticmethod
     def rate(start: float, end: float, its: int) -> float:
@@ -81,26 +88,60 @@ class Lag:
             return math.inf
         return math.log10(start / max(end, 1e-300)) / its
 
-    def budget(self, rtol: float) -> int:
-        """Iterations allowed to a solve with the kept preconditioner, to ``rtol``."""
-        return int(math.ceil(2.0 * math.log10(1.0 / rtol) / self._rate0)) + 5
+    def budget(self, rtol: float, fresh: bool) -> float:
+        """Iterations allowed to a solve to ``rtol``: at ``keep`` × the fresh rate with the
+        kept preconditioner, at ``slow`` with a fresh one."""
+        rate = self.slow if fresh else self.keep * self._rate0
+        return math.inf if rate <= 0 else int(math.ceil(math.log10(1.0 / rtol) / rate)) + 5
 
     def update(self, start: float, end: float, its: int, failed: bool, fresh: bool) -> None:
         """Record a solve: residual norms at its start and end, iterations, failure, and
         whether it built its preconditioner."""
-        r = self.rate(start, end, its)
+        r = self.last_rate = self.rate(start, end, its)
         if fresh:
             self._rate0 = r
         self.reuse = not failed and r >= self.keep * self._rate0
+        self.weak = self.slow > 0 and fresh and (failed or r < self.slow)
 
     def rebuild(self) -> None:
         """The next solve builds its preconditioner anew (Kc is a new matrix)."""
         self.reuse = False
 
 
+def direct_ksp(like: PETSc.KSP) -> tuple[PETSc.KSP, Lag]:
+    """A direct solve of ``like``'s operator to its tolerance: GMRES preconditioned by a
+    MUMPS factorization, kept while a solve converges within its budget (a factorization of
+    the last Newton iteration's Kc solves this one's in a few iterations), with ``like``'s
+    options prefix (MUMPS's options) and tolerances.
+
+    Args:
+        like: The KSP it replaces.
+
+    Returns:
+        The KSP and its record.
+    """
+    A, _ = like.getOperators()
+    ksp = PETSc.KSP().create(A.getComm())
+    ksp.setOptionsPrefix(like.getOptionsPrefix())
+    ksp.setOperators(A)
+    ksp.setType(PETSc.KSP.Type.GMRES)
+    ksp.setGMRESRestart(50)
+    ksp.setPCSide(PETSc.PC.Side.RIGHT)
+    ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
+    rtol, atol, divtol, max_it = like.getTolerances()
+    ksp.setTolerances(rtol=rtol, atol=atol, divtol=divtol, max_it=max_it)
+    pc = ksp.getPC()
+    pc.setType(PETSc.PC.Type.LU)
+    pc.setFactorSolverType("mumps")
+    # kept while it gains a decade an iteration or so: a stale factorization either solves
+    # in a few iterations or, after an active-set change, barely gains (sliding, 1e5 dofs)
+    return ksp, Lag(keep=0.1, slow=0.0)
+
+
 def solve_lagged(ksp: PETSc.KSP, lag: Lag | None, f: PETSc.Vec, y: PETSc.Vec) -> tuple[int, int]:
     """y = A⁻¹ f by ``ksp`` from a zero guess, keeping its preconditioner while ``lag``
-    says it serves; a kept one stopped at its budget is replaced by a fresh one.
+    says it serves; a kept one stopped at its budget is replaced by a fresh one (a fresh
+    one stopped at its budget leaves ``lag.weak``).
 
     Args:
         ksp: The KSP (its operator may have changed since its last solve).
@@ -119,7 +160,7 @@ def solve_lagged(ksp: PETSc.KSP, lag: Lag | None, f: PETSc.Vec, y: PETSc.Vec) ->
     start, its = f.norm(), 0
     for fresh in ((False, True) if lag.reuse else (True,)):
         ksp.getPC().setReusePreconditioner(not fresh)
-        ksp.setTolerances(max_it=max_it if fresh else min(max_it, lag.budget(rtol)))
+        ksp.setTolerances(max_it=int(min(max_it, lag.budget(rtol, fresh))))
         y.set(0.0)
         ksp.solve(f, y)
         its += ksp.getIterationNumber()

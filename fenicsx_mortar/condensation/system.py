@@ -4,6 +4,7 @@ linear solve done on it (the package docstring has the outline).
 """
 from __future__ import annotations
 
+import warnings
 from typing import Sequence
 
 import numpy as np
@@ -16,7 +17,7 @@ from ..system import MultiplierSystem, near_nullspace
 from ..timings import Timings
 from .elimination import Elimination
 from .inverses import below_round_off
-from .ksp import CondensedKSP, Forcing, Lag, SaddleOperator, solve_lagged
+from .ksp import CondensedKSP, Forcing, Lag, SaddleOperator, direct_ksp, solve_lagged
 from .pattern import KcPattern
 
 
@@ -273,6 +274,9 @@ class CondensedSystem(KcPattern, MultiplierSystem):
             self.inner.setTolerances(rtol=self.forcing.rtol(b.norm(), fnorm_iteration))
         y = self._y
         its, reason = solve_lagged(self.inner, self.lag, f, y)
+        if self.lag is not None and self.lag.weak:
+            its_direct, reason = self._fall_back(f, y, reason)
+            its += its_direct
         self._fill_P(y, b_lam[elim.H])
         self.last_solve = {"iterations": its, "reason": int(reason),
                            "residual": float(self.inner.getResidualNorm()),
@@ -282,6 +286,23 @@ class CondensedSystem(KcPattern, MultiplierSystem):
         out[: self.n_u] = y.array_r
         out[self.n_u:] = dlam[self._lam_owned]
         return its, reason
+
+    def _fall_back(self, f: PETSc.Vec, y: PETSc.Vec, reason: int) -> tuple[int, int]:
+        """The preconditioner is weak on this Kc (Lag.weak: on a moving contact set AMG
+        took tens of iterations a decade): Kc is solved with a kept MUMPS factorization
+        from here on, and ``f`` again if the solve (its ``reason``) failed."""
+        weak, rate = self.inner, self.lag.last_rate
+        pc = weak.getPC().getType()
+        self.inner, self.lag = direct_ksp(weak)
+        weak.destroy()
+        if self.comm.rank == 0:
+            warnings.warn(f"the {pc} preconditioner converges at {rate:.3f} decades per "
+                          "iteration on the condensed system: it is solved with a kept "
+                          "MUMPS factorization from here on (docs/condensation.md §4)",
+                          stacklevel=1)
+        if reason >= 0:
+            return 0, reason
+        return solve_lagged(self.inner, self.lag, f, y)
 
     def _fill_P(self, du: PETSc.Vec, b_H: np.ndarray) -> None:
         """Δu at the rows P (this rank's) from the constraints and the rest of Δu."""
