@@ -97,7 +97,8 @@ def linear_solver_options(name: str, condensed: bool = False) -> dict[str, str]:
         return {"ksp_type": "gmres", "pc_type": "hypre", "ksp_rtol": "1e-12"}
     if name == "gmres-gamg":
         return {"ksp_type": "gmres", "pc_type": "gamg", "ksp_rtol": "1e-12"}
-    lu = "mumps" if name == "condensed-mumps" else name
+    # "auto" before it is resolved (scene checks before meshing): its small-problem choice
+    lu = "mumps" if name in ("condensed-mumps", "auto") else name
     return {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": lu}
 
 

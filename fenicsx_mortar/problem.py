@@ -34,6 +34,7 @@ from .acceptance import Acceptance
 from .condensation import condensable
 from .newton import NewtonSolver, StepResult
 from .settings import SolverSettings, check_number
+from .system import resolve_linear_solver
 from .timings import Timings
 
 if TYPE_CHECKING:
@@ -85,7 +86,8 @@ class ContactProblem:
         pairs = list(pairs)
         _check_forms(F, J, u)
         _check_pairs(pairs, u)
-        settings = (settings or SolverSettings()).check("settings")
+        settings = resolve_linear_solver((settings or SolverSettings()).check("settings"),
+                                         pairs, dx.dof_count(u.function_space))
         check_number("max_augmentations", max_augmentations)
         if not isinstance(petsc_options_prefix, str) or " " in petsc_options_prefix \
                 or petsc_options_prefix.startswith("-"):

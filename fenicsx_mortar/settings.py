@@ -11,10 +11,11 @@ from typing import Literal
 
 #: line searches of the Newton solver: PETSc's, and "l2-full" (linesearch.py)
 LINE_SEARCHES = ("basic", "bt", "l2", "cp", "l2-full")
-#: linear solvers (docs/scenes.md): a direct factorization by name, MUMPS on the condensed
-#: system of dual multipliers, or GMRES with an algebraic multigrid (PETSc's GAMG, hypre's
-#: BoomerAMG)
-LINEAR_SOLVERS = ("mumps", "superlu_dist", "condensed-mumps", "gmres-gamg", "gmres-hypre")
+#: linear solvers (docs/scenes.md): by size ("auto", system.py resolve_linear_solver), a
+#: direct factorization by name, MUMPS on the condensed system of dual multipliers, or
+#: GMRES with an algebraic multigrid (PETSc's GAMG, hypre's BoomerAMG)
+LINEAR_SOLVERS = ("auto", "mumps", "superlu_dist", "condensed-mumps", "gmres-gamg",
+                  "gmres-hypre")
 #: the solvers that take multipliers through the condensed displacement system (dual
 #: basis only; docs/condensation.md)
 CONDENSED_SOLVERS = ("condensed-mumps", "gmres-gamg", "gmres-hypre")
@@ -102,7 +103,9 @@ class SolverSettings:
         line_search: ``"l2-full"`` (full step when it divides the residual by 4, else
             PETSc's ``l2`` step), or a PETSc line search (``"basic"``, ``"bt"``, ``"l2"``,
             ``"cp"``).
-        linear_solver: ``"mumps"`` (default), ``"superlu_dist"``, ``"condensed-mumps"``,
+        linear_solver: ``"auto"`` (default: ``"gmres-gamg"`` from
+            :data:`~.system.AUTO_AMG_DOFS` displacement dofs with dual multipliers, else
+            ``"mumps"``), ``"mumps"``, ``"superlu_dist"``, ``"condensed-mumps"``,
             ``"gmres-gamg"`` or ``"gmres-hypre"`` (LINEAR_SOLVERS; with multipliers the
             last three condense the dual ones, docs/condensation.md).
         quadrature_degree: Of the bulk forms a scene builds, and of the inverted-cell check.
@@ -112,8 +115,8 @@ class SolverSettings:
     rtol: float = 1e-8
     max_iterations: int = 25
     line_search: Literal["basic", "bt", "l2", "cp", "l2-full"] = "l2-full"
-    linear_solver: Literal["mumps", "superlu_dist", "condensed-mumps", "gmres-gamg",
-                           "gmres-hypre"] = "mumps"
+    linear_solver: Literal["auto", "mumps", "superlu_dist", "condensed-mumps", "gmres-gamg",
+                           "gmres-hypre"] = "auto"
     quadrature_degree: int = 2  # full Gauss integration of P1/Q1 (2x2 on quadrilaterals)
     petsc: dict[str, bool | int | float | str] = field(default_factory=dict)
 

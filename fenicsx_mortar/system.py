@@ -17,6 +17,8 @@ residual and Jacobian assembly with the pairs' terms.
 """
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -250,6 +252,34 @@ def near_nullspace(V) -> PETSc.NullSpace:
     ns = PETSc.NullSpace().createRigidBody(coords)
     coords.destroy()
     return ns
+
+
+#: displacement dofs from which ``linear_solver = "auto"`` condenses dual multipliers and
+#: solves with GMRES + GAMG (docs/performance.md §7: ahead of MUMPS on Hertz from 124k dofs,
+#: 1.8-2.6x; on large sliding, where it hands over to a kept factorization, behind at 108k
+#: and ahead at 250k and 500k)
+AUTO_AMG_DOFS = 200_000
+
+
+def resolve_linear_solver(settings, pairs, n_dofs: int):
+    """``settings`` with ``linear_solver = "auto"`` made a solver: ``"gmres-gamg"`` for a
+    problem of at least :data:`AUTO_AMG_DOFS` displacement dofs whose multiplier pairs all
+    condense (the dual basis), else ``"mumps"``.
+
+    Args:
+        settings: The SolverSettings.
+        pairs: The contact pairs.
+        n_dofs: The global number of displacement dofs.
+
+    Returns:
+        The settings, replaced if ``"auto"``.
+    """
+    if settings.linear_solver != "auto":
+        return settings
+    from .condensation import condensable
+    amg = (n_dofs >= AUTO_AMG_DOFS and any(p.unknowns for p in pairs)
+           and condensable(pairs))
+    return dataclasses.replace(settings, linear_solver="gmres-gamg" if amg else "mumps")
 
 
 def system_class(pairs, linear_solver: str):

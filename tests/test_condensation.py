@@ -231,6 +231,61 @@ def test_check_solver_choice():
                            multipliers=True, condensable=True)
 
 
+def solved(scene):
+    """Solve ``scene``; the result and the class of its last problem's Newton system."""
+    from fenicsx_mortar import problem as fm_problem
+    from fenicsx_mortar import solve
+    kinds: list = []
+    original = fm_problem.ContactProblem.__init__
+
+    def init(self, *args, **kwargs):
+        original(self, *args, **kwargs)
+        kinds.append((type(self.newton.system).__name__,
+                      self.newton.settings.linear_solver))
+
+    fm_problem.ContactProblem.__init__ = init
+    try:
+        res = solve(scene, log=lambda s: None)
+    finally:
+        fm_problem.ContactProblem.__init__ = original
+    assert res.converged, res.message
+    return res, kinds[-1]
+
+
+def test_auto_condenses_from_its_size_and_with_the_dual_basis(monkeypatch):
+    """linear_solver = "auto": MUMPS on the saddle point below AUTO_AMG_DOFS, GMRES + GAMG
+    on the condensed system from there (the same pressures), MUMPS again with the standard
+    basis whatever the size."""
+    from fenicsx_mortar import system
+    ref, kind = solved(scene_variant("hertz", "auto"))
+    assert kind == ("MultiplierSystem", "mumps")
+    monkeypatch.setattr(system, "AUTO_AMG_DOFS", 0)
+    amg, kind = solved(scene_variant("hertz", "auto"))
+    assert kind == ("CondensedSystem", "gmres-gamg")
+    pa, pb = (r.pairs[0].interface()["pressure"] for r in (ref, amg))
+    assert np.abs(pa - pb).max() <= 1e-8 * pa.max()
+    standard = scene_variant("hertz", "auto")
+    standard.contacts[0].basis = "standard"
+    _, kind = solved(standard)
+    assert kind == ("MultiplierSystem", "mumps")
+
+
+def test_a_weak_amg_hands_over_to_a_factorization(monkeypatch):
+    """B3 pressed and turned with μ = 0.3 on GMRES + GAMG, every AMG counted weak (Lag.slow
+    above any rate it reaches): the first solve hands over to a kept MUMPS factorization,
+    with a warning, and the run reaches the saddle-point MUMPS run's pressures."""
+    from fenicsx_mortar.condensation import ksp
+    ref, _ = solved(scene_variant("half_rings", "mumps"))
+    original = ksp.Lag.__init__
+    monkeypatch.setattr(ksp.Lag, "__init__",
+                        lambda self, keep=0.5, slow=1e3: original(self, keep, slow))
+    with pytest.warns(UserWarning, match="kept MUMPS factorization"):
+        weak, kind = solved(scene_variant("half_rings", "gmres-gamg"))
+    assert kind == ("CondensedSystem", "gmres-gamg")
+    pa, pb = (r.pairs[0].interface()["pressure"] for r in (ref, weak))
+    assert np.abs(pa - pb).max() <= 1e-8 * pa.max()
+
+
 # ------------------------------------------------------------------------------ MPI
 
 MPI_SCENES = ("hertz", "block_on_slab", "half_rings")

@@ -224,7 +224,7 @@ def _check_contacts(scene: Scene) -> None:
                 f"multipliers, which needs the dual basis; {key} (basis "
                 f"{c.basis or 'standard'!r}, method {c.method!r}) has a saddle-point "
                 "system: use 'mumps', or the mortar method's dual basis")
-        if multipliers and not condensed and setting[1] != "mumps":
+        if multipliers and not condensed and setting[1] not in ("mumps", "auto"):
             raise SceneError(
                 f"{setting[0]} = {setting[1]!r}: cannot solve the "
                 f"saddle-point system of {key}'s multipliers (enforcement "
