@@ -71,205 +71,22 @@ only as Σ_j p_j ∇²g̃_j over the pairs with a node in contact, when it asks:
 just those pairs are formed again with second derivatives (:class:`_Deferred`, one
 weighted sum per pair; Hertz a/20: 82 of 332 pairs). On the polyline (the default) the
 integrals are closed-form polynomials in five intermediates and the derivatives dense
-chain rules over them (:class:`_PolylineGeometry`), equal to the jets' to round-off.
+chain rules over them (:mod:`.polyline_mortar`), equal to the jets' to round-off. The
+segmentation and its float pass: :mod:`.segmentation`.
 """
 from __future__ import annotations
 
-import functools
 from typing import NamedTuple, Tuple
 
 import numpy as np
 
 from . import ad
-from .ad import Jet2, Vec2
+from .ad import Jet2
 from .curves import MasterCurve, Polyline
 from .kernel import MasterTest, NodalContributions, Triplets
-
-
-@functools.lru_cache(maxsize=None)
-def gauss_legendre_01(n: int) -> Tuple[np.ndarray, np.ndarray]:
-    """Gauss–Legendre points and weights on [0, 1] (weights sum to 1; cached, read-only)."""
-    s, w = np.polynomial.legendre.leggauss(int(n))
-    s, w = 0.5 * (s + 1.0), 0.5 * w
-    s.setflags(write=False)
-    w.setflags(write=False)
-    return s, w
-
-
-def _interval(xa: Vec2, xb: Vec2, nodes):
-    """The ends ζ_c, ζ_d of the master segment's shadow on the slave segment (unclamped)
-    and the boolean 'slave faces master' per pair; ``nodes`` = (x_c, x_d, t̄_c, t̄_d) per
-    pair."""
-    xc, xd, tc, td = nodes
-    e = ad.sub(xb, xa)
-    den_c = ad.dot(e, tc)
-    den_d = ad.dot(e, td)
-    facing = (ad.value(den_c) < 0.0) & (ad.value(den_d) < 0.0)
-    if not np.all(facing):
-        # keep the discarded entries finite; they are dropped by the caller
-        den_c = ad.where(facing, den_c, -1.0)
-        den_d = ad.where(facing, den_d, -1.0)
-    zc = ad.div(ad.dot(ad.sub(xc, xa), tc), den_c)
-    zd = ad.div(ad.dot(ad.sub(xd, xa), td), den_d)
-    return zc, zd, facing
-
-
-def _clamp(zc: np.ndarray, zd: np.ndarray):
-    """Integration bounds ζ_lo = max(min(ζ_c, ζ_d), 0), ζ_hi = min(max(ζ_c, ζ_d), 1) from
-    the values of the shadow's ends, and which end each bound is: ``mix`` (2 × 2 boolean
-    arrays) with ζ_lo = mix[0][0] ζ_c + mix[0][1] ζ_d (+ 0 where clamped) and ζ_hi =
-    mix[1][0] ζ_c + mix[1][1] ζ_d (+ 1 where clamped), the form :func:`.ad.substitute`
-    takes (the bounds' derivatives are those of the chosen end: no jets of their own)."""
-    first = zc <= zd
-    zmin = np.where(first, zc, zd)
-    zmax = np.where(first, zd, zc)
-    lo_in, hi_in = zmin > 0.0, zmax < 1.0
-    lo = np.where(lo_in, zmin, 0.0)
-    hi = np.where(hi_in, zmax, 1.0)
-    mix = ((lo_in & first, lo_in & ~first), (hi_in & ~first, hi_in & first))
-    return lo, hi, mix
-
-
-class _Ends(NamedTuple):
-    """The bounds ζ_lo, ζ_hi of the pairs' integration intervals from the float pass, and
-    which end of the shadow (:func:`_interval`) each one is: the clamp's ``mix``
-    (:func:`_clamp`). Only these ends get jets (:meth:`entries`)."""
-
-    lo: np.ndarray
-    hi: np.ndarray
-    mix: tuple
-
-    def subset(self, pairs) -> "_Ends":
-        """The bounds of the pairs ``pairs`` (slice or index array)."""
-        return _Ends(self.lo[pairs], self.hi[pairs],
-                     tuple(tuple(c[pairs] for c in row) for row in self.mix))
-
-    def entries(self):
-        """The ends in use as entries (pair, at_d: False for the start node c, True for the
-        end node d), and per pair the entry each bound is (any entry where the bound is
-        clamped) and whether it is that entry (1.0) or clamped (0.0)."""
-        (lc, ld), (hc, hd) = self.mix
-        ic, id_ = np.flatnonzero(lc | hc), np.flatnonzero(ld | hd)
-        if ic.shape[0] + id_.shape[0] == 0:
-            ic = np.zeros(1, dtype=np.int64)     # no bound moves: one entry to keep shapes
-        pos_c = np.zeros(self.lo.shape[0], dtype=np.int64)
-        pos_d = np.zeros(self.lo.shape[0], dtype=np.int64)
-        pos_c[ic] = np.arange(ic.shape[0])
-        pos_d[id_] = ic.shape[0] + np.arange(id_.shape[0])
-        pair = np.concatenate([ic, id_])
-        at_d = np.arange(pair.shape[0]) >= ic.shape[0]
-        return (pair, at_d, (np.where(lc, pos_c, pos_d), np.where(hc, pos_c, pos_d)),
-                ((lc | ld) * 1.0, (hc | hd) * 1.0))
-
-
-class _Bounds(NamedTuple):
-    """ζ_lo, ζ_hi of a block of pairs: values, and for their derivatives the jet of ζ at
-    the shadow's ends in use (batch: entries), the entry each bound is per pair, and
-    whether it is that entry (1.0) or clamped (0.0)."""
-
-    lo: np.ndarray
-    hi: np.ndarray
-    z_end: Jet2
-    entry: tuple
-    on: tuple
-
-    def inner(self, pairs=None):
-        """The bounds of the pairs (all, or a slice / index array) as :func:`.ad.substitute`
-        takes them: the jets of the ends they are, and the mix."""
-        (e_lo, e_hi), (a, b) = self.entry, self.on
-        if pairs is not None:
-            e_lo, e_hi, a, b = e_lo[pairs], e_hi[pairs], a[pairs], b[pairs]
-        return (self.z_end[e_lo], self.z_end[e_hi]), ((a, None), (None, b))
-
-    def grads(self, m: int) -> Tuple[np.ndarray, np.ndarray]:
-        """Dense gradients (K, m) of ζ_lo and ζ_hi over the first m variables."""
-        g = self.z_end.grad[:, :m]
-        return tuple(on[:, None] * g[entry] for entry, on in zip(self.entry, self.on))
-
-    def jets(self, m: int) -> Tuple[Jet2, Jet2]:
-        """ζ_lo, ζ_hi as jets over the first m variables."""
-        out = []
-        for entry, on, clamp in zip(self.entry, self.on, (0.0, 1.0)):
-            q = ad.where(on > 0.0, self.z_end[entry], clamp)
-            out.append(q if q.m == m else Jet2(q.val, q.grad[:, :m], q.hess[:, :m, :m]))
-        return out[0], out[1]
-
-
-def _columns(x: np.ndarray, rows: np.ndarray) -> Vec2:
-    """(x[rows, 0], x[rows, 1]) by take on contiguous columns (much faster than fancy
-    indexing of the (n, 2) array)."""
-    return (np.ascontiguousarray(x[:, 0]).take(rows), np.ascontiguousarray(x[:, 1]).take(rows))
-
-
-#: index layouts of the last few candidate sets (see _layout)
-_layouts: list = []
-
-
-class _Layout(NamedTuple):
-    """Index data of a candidate set that depends only on the pairs and the chains."""
-
-    ps: np.ndarray        # candidate pairs
-    pm: np.ndarray
-    na: np.ndarray        # slave end nodes a, b of each pair
-    nb: np.ndarray
-    seg_used: np.ndarray  # master segments in use, and each pair's position among them
-    inv: np.ndarray
-
-
-def _layout(ps: np.ndarray, pm: np.ndarray, slave_seg, master_seg, n_master_seg: int
-            ) -> _Layout:
-    """The index layout of the candidates, kept while the same candidates come again for
-    the same chains (``slave_seg``, ``master_seg``: the caller's arrays, compared by
-    identity; the search returns the same pairs at most Newton iterations)."""
-    for lay, ss, ms in _layouts:
-        if (ss is slave_seg and ms is master_seg and lay.ps.shape == ps.shape
-                and np.array_equal(lay.ps, ps) and np.array_equal(lay.pm, pm)):
-            return lay
-    seg_s = np.asarray(slave_seg, dtype=np.int64).reshape(-1, 2)
-    used = np.zeros(n_master_seg, dtype=bool)
-    used[pm] = True
-    lay = _Layout(ps.copy(), pm.copy(), *_columns(seg_s, ps), np.flatnonzero(used),
-                  (np.cumsum(used) - 1).take(pm))
-    # the key holds the chains themselves (identity; they are the surfaces' topology)
-    _layouts.insert(0, (lay, slave_seg, master_seg))
-    del _layouts[4:]
-    return lay
-
-
-def _node_values(curve: MasterCurve, master_x, lay: _Layout):
-    """(x_c, x_d, t̄_c, t̄_d) values per pair, evaluated once per master segment in use
-    (the candidate pairs repeat each master segment many times) and gathered."""
-    P = curve.split_points(curve.local_points(lay.seg_used, master_x))
-    xc, xd = curve.node_points(lay.seg_used, P)
-    tc, td = curve.node_tangents(lay.seg_used, P)
-    return tuple((np.asarray(v[0], dtype=float).take(lay.inv),
-                  np.asarray(v[1], dtype=float).take(lay.inv)) for v in (xc, xd, tc, td))
-
-
-def _prepass(xa: Vec2, xb: Vec2, curve: MasterCurve, master_x, lay: _Layout):
-    """Values (ζ_lo, ζ_hi, keep, mix of :func:`_clamp`) of the candidate pairs (slave end
-    points xa, xb)."""
-    nodes = _node_values(curve, master_x, lay)
-    zc, zd, facing = _interval(xa, xb, nodes)
-    lo, hi, mix = _clamp(np.asarray(zc, dtype=float), np.asarray(zd, dtype=float))
-    return lo, hi, facing & (hi > lo), mix
-
-
-def segmentation(slave_x: np.ndarray, slave_seg: np.ndarray, curve: MasterCurve,
-                 pairs: Tuple[np.ndarray, np.ndarray], master_x: np.ndarray | None = None
-                 ) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Integration intervals of the candidate pairs (values only).
-
-    Returns ``(zeta_lo, zeta_hi, keep)``, each (n_pairs,): the interval [ζ_lo, ζ_hi] ⊂ [0, 1]
-    of the slave segment served by the master segment and whether the pair contributes
-    (faces the master and ζ_hi > ζ_lo). Master coordinates from ``master_x`` (default: the
-    curve's own).
-    """
-    ps = np.asarray(pairs[0], dtype=np.int64)
-    pm = np.asarray(pairs[1], dtype=np.int64)
-    lay = _layout(ps, pm, slave_seg, curve.seg, curve.seg.shape[0])
-    xs = np.asarray(slave_x, dtype=float)
-    return _prepass(_columns(xs, lay.na), _columns(xs, lay.nb), curve, master_x, lay)[:3]
+from .polyline_mortar import PolylineDeferred, PolylineGeometry
+from .segmentation import Bounds, Ends, columns, gauss_legendre_01, layout, prepass
+from .segmentation import segmentation  # noqa: F401  (the module's API: tests, benchmarks)
 
 
 class _Integrand(NamedTuple):
@@ -282,7 +99,7 @@ class _Integrand(NamedTuple):
     J: Jet2
     zeta: Jet2
     w: np.ndarray
-    bounds: _Bounds
+    bounds: Bounds
 
 
 #: N_a = 1 − ζ, N_b = ζ as ζ·(−1, 1) + (1, 0) over a leading node axis
@@ -367,299 +184,6 @@ class _Deferred:
         return out
 
 
-# ---------------------------------------------------------------------- polyline, closed form
-# On a straight master segment the gap of a chord point is linear along the chord,
-# g(ζ) = (1−ζ) g_a + ζ g_b with g_s = (x_s − x_c)·n, so the integrals are polynomials in
-# the bounds, and five intermediates y = (|x_b − x_a|, g_a, g_b, ζ_lo, ζ_hi) carry all the
-# dependence on the 12 local coordinates [a, b, p, c, d, q]: derivatives by the chain rule
-# over y in a few dense numpy operations instead of the jets' many small ones (the jets'
-# per-operation overhead was most of the kernel's time on Hertz). Every second derivative
-# of an intermediate is a sum of 2 × 2 blocks h times constant selections D1ᵀ h D2, so a
-# weighted Hessian is one matrix product of per-pair coefficients with constant 12 × 12
-# patterns (_PATTERNS) plus a low-rank part.
-
-#: _SEL[i] (2, 12) picks local point i's coordinates (a, b, p, c, d, q = 0 … 5)
-_SEL = np.zeros((6, 2, 12))
-for _i in range(6):
-    _SEL[_i, 0, 2 * _i] = _SEL[_i, 1, 2 * _i + 1] = 1.0
-_PA, _PB, _PP, _PC, _PD, _PQ = range(6)
-_DIFF = {"ab": _SEL[_PB] - _SEL[_PA], "cd": _SEL[_PD] - _SEL[_PC],
-         "pc": _SEL[_PC] - _SEL[_PP], "dq": _SEL[_PQ] - _SEL[_PD]}
-_EYE2 = np.eye(2)
-_ROT = np.array([[0.0, -1.0], [1.0, 0.0]])  # perp(v) = e3 × v = _ROT v
-
-
-def _pattern(D1: np.ndarray, D2: np.ndarray, sym: bool) -> np.ndarray:
-    """(4, 144): row 2i + j is D1[i]ᵀ D2[j] (flattened; + its transpose with ``sym``), so
-    that h.reshape(K, 4) @ pattern = D1ᵀ h D2 (+ its transpose) for 2 × 2 blocks h."""
-    out = np.empty((4, 144))
-    for i in range(2):
-        for j in range(2):
-            M = np.outer(D1[i], D2[j])
-            out[2 * i + j] = (M + M.T if sym else M).ravel()
-    return out
-
-
-#: the patterns a weighted Hessian is made of, by key: ("C", u, v) = D_uᵀ h D_v,
-#: ("S", u, v) = the same plus its transpose; u, v a point (an index) or a difference
-_KEYS = ([("C", "ab", "ab"), ("C", "cd", "cd"), ("C", "pc", "pc"), ("C", "dq", "dq"),
-          ("S", _PA, "cd"), ("S", _PB, "cd"), ("S", _PC, "cd"), ("S", _PD, "cd"),
-          ("S", _PA, "pc"), ("S", _PB, "pc"), ("S", _PC, "pc"),
-          ("S", _PA, "dq"), ("S", _PB, "dq"), ("S", _PD, "dq")]
-         + [("S", "r" + s, "cd") for s in "ab"])
-_COLUMN = {k: 4 * i for i, k in enumerate(_KEYS)}
-
-
-def _operand(u):
-    if isinstance(u, str) and u[0] == "r":          # r = x_s − x_c
-        return _SEL[_PA if u[1] == "a" else _PB] - _SEL[_PC]
-    return _DIFF[u] if isinstance(u, str) else _SEL[u]
-
-
-_PATTERNS = np.concatenate([_pattern(_operand(u), _operand(v), kind == "S")
-                            for kind, u, v in _KEYS])
-
-
-def _unit_derivatives(vx: np.ndarray, vy: np.ndarray, second: bool):
-    """unit(v) (2, K), its Jacobian (2, 2, K) and, with ``second``, Σ_i w_i ∂²u_i/∂v∂v as a
-    function of w (2, K) → (2, 2, K): ∂²u_i/∂v_j∂v_k = (3 u_i u_j u_k − δ_ij u_k − δ_ik u_j
-    − δ_jk u_i)/|v|² (batch last)."""
-    length = np.sqrt(vx * vx + vy * vy)
-    u = np.stack([vx / length, vy / length])
-    uu = u[:, None] * u[None, :]
-    J = (_EYE2[:, :, None] - uu) / length
-    if not second:
-        return u, J, None
-    l2 = length * length
-
-    def contracted(w):
-        wu = w[0] * u[0] + w[1] * u[1]
-        wuT = w[:, None] * u[None, :]
-        return (3.0 * wu * uu - wuT - wuT.transpose(1, 0, 2) - wu * _EYE2[:, :, None]) / l2
-    return u, J, contracted
-
-
-#: the 12 local coordinates of each point a, b, p, c, d, q
-_COLS = [slice(2 * i, 2 * i + 2) for i in range(6)]
-
-
-class _PolylineGeometry:
-    """The intermediates y = (L, g_a, g_b, ζ_lo, ζ_hi) of a batch of K polyline pairs: values
-    ``val`` (5, K) and gradients ``Y`` (5, 12, K) over the local coordinates [a, b, p, c, d,
-    q], batch last (contiguous rows: the arithmetic runs on whole (K,) rows); with
-    ``second`` what the Hessians of functions of y need (:meth:`_hessian`). ``has_p`` /
-    ``has_q``: whether the master segment has a neighbour before / after (else the reflected
-    ghost: the segment's own tangent at that end); the bounds' values ``lo``, ``hi`` and which
-    shadow end they are (``mix``, :func:`_clamp`) come from the float pass."""
-
-    def __init__(self, X, has_p, has_q, lo, hi, mix, second: bool):
-        K = X.shape[0]
-        P = np.ascontiguousarray(X.T).reshape(6, 2, K)          # points, (x, y), pairs
-        a, b, p, c, d, q = P
-        e = b - a
-        L = np.sqrt(e[0] * e[0] + e[1] * e[1])
-        ue = e / L
-        m = d - c
-        l2 = m[0] * m[0] + m[1] * m[1]
-        ln = np.sqrt(l2)
-        n = np.stack([-m[1], m[0]]) / ln
-        val = np.empty((5, K))
-        Y = np.zeros((5, 12, K))
-        val[0], val[3], val[4] = L, lo, hi
-        Y[0, _COLS[_PA]], Y[0, _COLS[_PB]] = -ue, ue
-        terms = []                      # (pattern key, (2, 2, K) block, intermediate slot)
-        if second:
-            terms.append((("C", "ab", "ab"), (_EYE2[:, :, None] - ue[:, None] * ue[None, :])
-                          / L, 0))
-        # gaps of the slave end points from the master's line: h = r·n, r = x_s − x_c
-        for slot, pt, key in ((1, _PA, "ra"), (2, _PB, "rb")):
-            r = P[pt] - c
-            h = r[0] * n[0] + r[1] * n[1]
-            Rr = np.stack([-r[1], r[0]])
-            h_m = -Rr / ln - h * m / l2
-            val[slot] = h
-            Y[slot, _COLS[pt]] = n
-            Y[slot, _COLS[_PC]] = -n - h_m
-            Y[slot, _COLS[_PD]] = h_m
-            if second:
-                mm = m[:, None] * m[None, :]
-                Rm = Rr[:, None] * m[None, :]
-                terms.append((("S", key, "cd"), _ROT[:, :, None] / ln
-                              - n[:, None] * m[None, :] / l2, slot))
-                terms.append((("C", "cd", "cd"), (Rm + Rm.transpose(1, 0, 2)) / (l2 * ln)
-                              - (h / l2) * _EYE2[:, :, None] + (3.0 * h / (l2 * l2)) * mm,
-                              slot))
-        # the shadow's ends ζ = ((x_n − x_a)·t)/((x_b − x_a)·t), t the averaged tangent at
-        # the master node x_n (c or d): t_c = unit(x_c − x_p) + unit(x_d − x_c), t_d =
-        # unit(x_d − x_c) + unit(x_q − x_d), the segment's own unit tangent for a ghost
-        u0, J0, H0 = _unit_derivatives(m[0], m[1], second)
-        self.ends = []
-        for pt, real, v_real, key, far in ((_PC, has_p, c - p, "pc", _PP),
-                                           (_PD, has_q, q - d, "dq", _PQ)):
-            v1 = np.where(real, v_real, m)
-            u1, J1, H1 = _unit_derivatives(v1[0], v1[1], second)
-            t = u0 + u1
-            # Dt (2, 12, K): u0 over (c, d); u1 over (p, c) or (d, q), or (c, d) for a ghost
-            Dt = np.zeros((2, 12, K))
-            J1r, J1g = J1 * real, J1 * ~real
-            Dt[:, _COLS[_PC]] = -J0 - J1g
-            Dt[:, _COLS[_PD]] = J0 + J1g
-            lo_pt, hi_pt = (_PP, _PC) if pt == _PC else (_PD, _PQ)
-            Dt[:, _COLS[lo_pt]] -= J1r
-            Dt[:, _COLS[hi_pt]] += J1r
-            u = P[pt] - a
-            s = e[0] * t[0] + e[1] * t[1]
-            z = (u[0] * t[0] + u[1] * t[1]) / s
-            w = u - z * e
-            # ∇ζ = ((∂u − ζ ∂e)ᵀ t + Dtᵀ w)/s, ∂u − ζ ∂e = S_n + (ζ − 1) S_a − ζ S_b
-            gz = w[0] * Dt[0] + w[1] * Dt[1]
-            gz[_COLS[pt]] += t
-            gz[_COLS[_PA]] += (z - 1.0) * t
-            gz[_COLS[_PB]] -= z * t
-            gz /= s
-            end = dict(grad=gz)
-            if second:
-                ds = e[0] * Dt[0] + e[1] * Dt[1]
-                ds[_COLS[_PA]] -= t
-                ds[_COLS[_PB]] += t
-                end.update(s=s, z=z, w=w, J0=J0, J1=J1, H0=H0, H1=H1, real=real, key=key,
-                           pt=pt, ds=ds)
-            self.ends.append(end)
-        (lc, ld), (hc, hd) = mix
-        self.mix = ((lc * 1.0, ld * 1.0), (hc * 1.0, hd * 1.0))
-        gc, gd = self.ends[0]["grad"], self.ends[1]["grad"]
-        for slot, (fc, fd) in zip((3, 4), self.mix):
-            Y[slot] = fc * gc + fd * gd
-        self.val, self.Y, self.terms = val, Y, terms
-
-    def outputs(self):
-        """Values (4, K) and gradients (4, K, 12) of g̃_a, g̃_b, A_a, A_b (standard basis)."""
-        L, ga, gb, lo, hi = self.val
-        I0, I1, I2 = hi - lo, 0.5 * (hi * hi - lo * lo), (hi ** 3 - lo ** 3) / 3.0
-        al, be, gm = I0 - 2.0 * I1 + I2, I1 - I2, I2
-        one_l, one_h = 1.0 - lo, 1.0 - hi
-        # ∂/∂(L, g_a, g_b, lo, hi) of the four outputs (None: zero)
-        F = [[ga * al + gb * be, L * al, L * be, -L * (ga * one_l * one_l + gb * lo * one_l),
-              L * (ga * one_h * one_h + gb * hi * one_h)],
-             [ga * be + gb * gm, L * be, L * gm, -L * (ga * lo * one_l + gb * lo * lo),
-              L * (ga * hi * one_h + gb * hi * hi)],
-             [I0 - I1, None, None, -L * one_l, L * one_h],
-             [I1, None, None, -L * lo, L * hi]]
-        vals = np.stack([L * (ga * al + gb * be), L * (ga * be + gb * gm), L * (I0 - I1),
-                         L * I1])
-        grads = np.zeros((4, 12, L.shape[0]))
-        for o, row in enumerate(F):
-            for j, f in enumerate(row):
-                if f is not None:
-                    grads[o] += f * self.Y[j]
-        return vals, grads.transpose(0, 2, 1)
-
-    def _hessian(self, Wy, Wyy: dict) -> np.ndarray:
-        """(K, 12, 12): the Hessian Σ_i W_i H(y_i) + Σ_ij W_ij ∇y_i ⊗ ∇y_j of a function W(y)
-        with gradient ``Wy`` (5, K) and Hessian ``Wyy`` over the intermediates ({(i, j):
-        (K,)} for i ≤ j, the nonzero entries)."""
-        K = Wy.shape[1]
-        coef = np.zeros((_PATTERNS.shape[0], K))
-
-        def add(key, h, scale):
-            col = _COLUMN[key]
-            coef[col:col + 4] += (h * scale).reshape(4, K)
-
-        for key, h, slot in self.terms:
-            add(key, h, Wy[slot])
-        # H(ζ) = [sym((∂u − ζ ∂e)ᵀ Dt) + Σ_i w_i H(t_i) − sym(∇s ⊗ ∇ζ)]/s, weighted by
-        # σ = (W_lo f_lo + W_hi f_hi)/s; the last term joins the outer products
-        V = list(self.Y)
-        pairs = dict(Wyy)
-        for k, end in enumerate(self.ends):
-            sigma = (Wy[3] * self.mix[0][k] + Wy[4] * self.mix[1][k]) / end["s"]
-            z, real = end["z"], end["real"]
-            for pt, beta in ((end["pt"], 1.0), (_PA, z - 1.0), (_PB, -z)):
-                sb = sigma * beta
-                add(("S", pt, "cd"), end["J0"], sb)
-                add(("S", pt, end["key"]), end["J1"], sb * real)
-                add(("S", pt, "cd"), end["J1"], sb * ~real)
-            add(("C", "cd", "cd"), end["H0"](end["w"]), sigma)
-            W1 = end["H1"](end["w"])
-            add(("C", end["key"], end["key"]), W1, sigma * real)
-            add(("C", "cd", "cd"), W1, sigma * ~real)
-            V += [end["ds"], end["grad"]]
-            pairs[(5 + 2 * k, 6 + 2 * k)] = -sigma
-        # Σ_ij W_ij V_i ⊗ V_j = Σ_i V_i ⊗ Z_i, Z_i = Σ_j W_ij V_j (W symmetric)
-        Z = [None] * len(V)
-        for (i, j), wij in pairs.items():
-            for r, c in ((i, j), (j, i)) if i != j else ((i, j),):
-                Z[r] = wij * V[c] if Z[r] is None else Z[r] + wij * V[c]
-        H = (_PATTERNS.T @ coef).reshape(12, 12, K)
-        for Vi, Zi in zip(V, Z):
-            if Zi is not None:
-                H += Vi[:, None] * Zi[None, :]
-        return H.transpose(2, 0, 1)
-
-    def weighted_hessian(self, wa: np.ndarray, wb: np.ndarray) -> np.ndarray:
-        """(K, 12, 12): the Hessian of wa g̃_a + wb g̃_b (standard basis)."""
-        L, ga, gb, lo, hi = self.val
-        I0, I1, I2 = hi - lo, 0.5 * (hi * hi - lo * lo), (hi ** 3 - lo ** 3) / 3.0
-        al, be, gm = I0 - 2.0 * I1 + I2, I1 - I2, I2
-        one_l, one_h = 1.0 - lo, 1.0 - hi
-        P, Q = wa * al + wb * be, wa * be + wb * gm
-        P_l = -(wa * one_l * one_l + wb * lo * one_l)
-        P_h = wa * one_h * one_h + wb * hi * one_h
-        Q_l = -(wa * lo * one_l + wb * lo * lo)
-        Q_h = wa * hi * one_h + wb * hi * hi
-        P_ll = 2.0 * wa * one_l - wb * (1.0 - 2.0 * lo)
-        P_hh = -2.0 * wa * one_h + wb * (1.0 - 2.0 * hi)
-        Q_ll = -wa * (1.0 - 2.0 * lo) - 2.0 * wb * lo
-        Q_hh = wa * (1.0 - 2.0 * hi) + 2.0 * wb * hi
-        Wy = np.stack([ga * P + gb * Q, L * P, L * Q, L * (ga * P_l + gb * Q_l),
-                       L * (ga * P_h + gb * Q_h)])
-        Wyy = {(0, 1): P, (0, 2): Q, (0, 3): ga * P_l + gb * Q_l, (0, 4): ga * P_h + gb * Q_h,
-               (1, 3): L * P_l, (1, 4): L * P_h, (2, 3): L * Q_l, (2, 4): L * Q_h,
-               (3, 3): L * (ga * P_ll + gb * Q_ll), (4, 4): L * (ga * P_hh + gb * Q_hh)}
-        return self._hessian(Wy, Wyy)
-
-    def area_hessian(self, wa: np.ndarray, wb: np.ndarray) -> np.ndarray:
-        """(K, 12, 12): the Hessian of wa A_a + wb A_b, A_a = L (I0 − I1), A_b = L I1."""
-        L, _, _, lo, hi = self.val
-        I0, I1 = hi - lo, 0.5 * (hi * hi - lo * lo)
-        p_l, p_h = -wa * (1.0 - lo) - wb * lo, wa * (1.0 - hi) + wb * hi
-        z = np.zeros_like(L)
-        Wy = np.stack([wa * (I0 - I1) + wb * I1, z, z, L * p_l, L * p_h])
-        Wyy = {(0, 3): p_l, (0, 4): p_h, (3, 3): L * (wa - wb), (4, 4): L * (wb - wa)}
-        return self._hessian(Wy, Wyy)
-
-
-class _PolylineDeferred:
-    """Hessians of the polyline pairs' weighted gaps (standard basis; ``kind`` 0) or nodal
-    areas (1) on demand, as :class:`_Deferred` gives them: the intermediates formed again
-    with second derivatives for just the pairs asked for, in blocks of ``block``."""
-
-    def __init__(self, X, has_p, has_q, ends: "_Ends", block: int, kind: int = 0):
-        self.X, self.has_p, self.has_q, self.ends = X, has_p, has_q, ends
-        self.K, self.block, self.kind = X.shape[0], block, kind
-
-    def _geometry(self, idx):
-        e = self.ends.subset(idx)
-        return _PolylineGeometry(self.X[idx], self.has_p[idx], self.has_q[idx], e.lo, e.hi,
-                                 e.mix, True)
-
-    def __call__(self) -> np.ndarray:
-        one, zero = np.ones(self.K), np.zeros(self.K)
-        return np.concatenate([self.weighted(one, zero, slice(None)),
-                               self.weighted(zero, one, slice(None))])
-
-    def weighted(self, wa: np.ndarray, wb: np.ndarray, pairs) -> np.ndarray:
-        """wa H_a + wb H_b of the pairs (index array or slice into [0, K))."""
-        idx = np.arange(self.K)[pairs]
-        out = np.empty((idx.shape[0], 12, 12))
-        for b0 in range(0, idx.shape[0], self.block):
-            sel = slice(b0, min(b0 + self.block, idx.shape[0]))
-            geo = self._geometry(idx[sel])
-            out[sel] = (geo.weighted_hessian(wa[sel], wb[sel]) if self.kind == 0
-                        else geo.area_hessian(wa[sel], wb[sel]))
-        return out
-
-
 def _dual(q: np.ndarray) -> np.ndarray:
     """Node-a and node-b parts (leading axis of 2) of the standard-basis integrals →
     those of the dual basis: Φ_a = 2N_a − N_b, Φ_b = 2N_b − N_a."""
@@ -685,13 +209,13 @@ class _Dual:
 
 
 def _pair_block(X: np.ndarray, pm: np.ndarray, curve: MasterCurve, n_gauss: int,
-                ends: _Ends, test: bool = False, slave: tuple | None = None):
+                ends: Ends, test: bool = False, slave: tuple | None = None):
     """Jet kernel for a block of contributing pairs with local coordinates X (K, m) and
-    the bounds of their integration intervals (:class:`_Ends`).
+    the bounds of their integration intervals (:class:`Ends`).
 
     Returns the integrands of the weighted gaps and, with ``test``, of the Petrov–Galerkin
     test functionals Ψ_a, Ψ_b (module docstring; else None) (:class:`_Integrand`, which
-    carries the bounds, :class:`_Bounds`). The nodal areas follow from the
+    carries the bounds, :class:`Bounds`). The nodal areas follow from the
     bounds in closed form (:func:`_areas`). With ``test`` the jets run over [X, v] with 8
     virtual displacements v = (v_a, v_b, v_c, v_d) appended (value 0). With ``slave`` =
     (slave curve, slave segments) the slave points of the Gauss stage lie on that curve
@@ -702,7 +226,7 @@ def _pair_block(X: np.ndarray, pm: np.ndarray, curve: MasterCurve, n_gauss: int,
     m = X.shape[1]
     if test:
         X = np.concatenate([X, np.zeros((X.shape[0], 8))], axis=1)
-    # ζ of the shadow's ends in use (:func:`_interval` for one end per entry), over the
+    # ζ of the shadow's ends in use (:func:`.segmentation.interval` for one end per entry), over the
     # local coordinates of the entry's pair; the pairs pass the facing test (float pass)
     pair, at_d, entry, on = ends.entries()
     v = Jet2.variables(X.take(pair, axis=0))
@@ -711,7 +235,7 @@ def _pair_block(X: np.ndarray, pm: np.ndarray, curve: MasterCurve, n_gauss: int,
     x_n, t_n = curve.end_frame(pm.take(pair), P, at_d)
     z_end = ad.div(ad.dot(ad.sub(x_n, xa), t_n), ad.dot(ad.sub(xb, xa), t_n))
     lo, hi = ends.lo, ends.hi
-    bounds = _Bounds(lo, hi, z_end, entry, on)
+    bounds = Bounds(lo, hi, z_end, entry, on)
 
     # Gauss-point stage over the variables z = [ζ_lo, ζ_hi, local coordinates]: there the
     # integrand only touches the few coordinates the curve evaluation needs (sparse jets),
@@ -762,7 +286,7 @@ def _area_jets(X: np.ndarray, lo: Jet2, hi: Jet2):
     return J - area_b, area_b
 
 
-def _areas(X: np.ndarray, bounds: _Bounds):
+def _areas(X: np.ndarray, bounds: Bounds):
     """Values (2, K) and gradients (2, K, m) of the nodal areas A_a, A_b of the pairs,
 
         J = |x_b − x_a| (ζ_hi − ζ_lo),   A_b = J (ζ_lo + ζ_hi)/2,   A_a = J − A_b,
@@ -829,12 +353,12 @@ def weighted_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarr
     if ps.shape[0] == 0:
         e = NodalContributions.empty(2, L)
         return e, NodalContributions.empty(2, L)
-    lay = _layout(ps, pm, slave_seg, chain_m, master_seg.shape[0])
-    xa0, xb0 = _columns(xs, lay.na), _columns(xs, lay.nb)
-    lo, hi, keep, mix = _prepass(xa0, xb0, curve, master_x, lay)
+    lay = layout(ps, pm, slave_seg, chain_m, master_seg.shape[0])
+    xa0, xb0 = columns(xs, lay.na), columns(xs, lay.nb)
+    lo, hi, keep, mix = prepass(xa0, xb0, curve, master_x, lay)
     keep = np.flatnonzero(keep)
     ps, pm = ps.take(keep), pm.take(keep)
-    ends = _Ends(lo, hi, mix).subset(keep)
+    ends = Ends(lo, hi, mix).subset(keep)
     K = ps.shape[0]
     if K == 0:
         e = NodalContributions.empty(2, L)
@@ -863,19 +387,19 @@ def weighted_gaps(slave_x: np.ndarray, slave_seg: np.ndarray, master_x: np.ndarr
     closed = type(curve) is Polyline and slave_curve is None
     if closed:
         # straight master segments: closed-form integrals, derivatives over five
-        # intermediates (_PolylineGeometry)
+        # intermediates (PolylineGeometry)
         has_p, has_q = curve.prev_seg[pm] >= 0, curve.next_seg[pm] >= 0
         for b0 in range(0, K, block):
             b1 = min(b0 + block, K)
             e = ends if b1 - b0 == K else ends.subset(slice(b0, b1))
-            v, gr = _PolylineGeometry(X[b0:b1], has_p[b0:b1], has_q[b0:b1], e.lo, e.hi,
+            v, gr = PolylineGeometry(X[b0:b1], has_p[b0:b1], has_q[b0:b1], e.lo, e.hi,
                                       e.mix, False).outputs()
             val[:, :, b0:b1] = v.reshape(2, 2, -1)
             grad[:, :, b0:b1] = gr.reshape(2, 2, b1 - b0, m)
         # (second derivatives in blocks of 128 pairs: (K, 144) temporaries of more pairs
         # cost page faults; measured 5 µs a pair at 128, 8–11 at 256–332)
-        hess = _PolylineDeferred(X, has_p, has_q, ends, 128)
-        area_hessian = _PolylineDeferred(X, has_p, has_q, ends, 128, kind=1)
+        hess = PolylineDeferred(X, has_p, has_q, ends, 128)
+        area_hessian = PolylineDeferred(X, has_p, has_q, ends, 128, kind=1)
     for b0 in range(0, 0 if closed else K, block):
         b1 = min(b0 + block, K)
         blk = _Block(X[b0:b1], pm[b0:b1], curve, n_gauss,
