@@ -26,14 +26,20 @@ def petsc(A: sp.csr_matrix) -> PETSc.Mat:
                                  comm=PETSc.COMM_SELF)
 
 
-def test_a_kept_preconditioner_solves_the_current_matrix():
-    rtol = 1e-10
+def gmres(pc: str, rtol: float) -> PETSc.KSP:
+    """Right-preconditioned GMRES with ``pc``, as the condensed path's Krylov solve."""
     ksp = PETSc.KSP().create(PETSc.COMM_SELF)
     ksp.setType("gmres")
-    ksp.getPC().setType("gamg")
+    ksp.getPC().setType(pc)
     ksp.setPCSide(PETSc.PC.Side.RIGHT)
     ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
     ksp.setTolerances(rtol=rtol, max_it=1000)
+    return ksp
+
+
+def test_a_kept_preconditioner_solves_the_current_matrix():
+    rtol = 1e-10
+    ksp = gmres("gamg", rtol)
     rng = np.random.default_rng(0)
     b = rng.standard_normal(N * N)
     lag = Lag()
@@ -66,12 +72,7 @@ def test_a_weak_preconditioner_hands_over_to_a_kept_factorization():
     the kept factorization in a few iterations."""
     from fenicsx_mortar.condensation.ksp import direct_ksp
     rtol = 1e-10
-    amg = PETSc.KSP().create(PETSc.COMM_SELF)
-    amg.setType("gmres")
-    amg.getPC().setType("jacobi")
-    amg.setPCSide(PETSc.PC.Side.RIGHT)
-    amg.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
-    amg.setTolerances(rtol=rtol, max_it=1000)
+    amg = gmres("jacobi", rtol)
     b = np.random.default_rng(1).standard_normal(N * N)
     A = laplacian(1.0)
     M = petsc(A)
