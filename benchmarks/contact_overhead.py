@@ -55,8 +55,9 @@ nothing about time.
 
 Measured (issue 31, 2026-12-04, ``--clock cpu``, 2-core machine at load average 5–6): Hertz
 a/20 contact 7.9–8.3 ms against bulk 21.1–21.3 ms (37.5–38.7 %) before; after the kernel's
-deferred Hessians and closed-form polyline (``contact/mortar.py``) 5.8–6.3 ms against
-20.8–21.4 ms (26.9–29.5 %): curve+proj+mortar 3.2–3.3 → 1.0–1.2 ms, the rest (nodal sums,
+deferred Hessians and closed-form polyline (``contact/mortar.py``, now
+``contact/polyline_mortar.py``) 5.8–6.3 ms against 20.8–21.4 ms (26.9–29.5 %):
+curve+proj+mortar 3.2–3.3 → 1.0–1.2 ms, the rest (nodal sums,
 enforcement, sparse R/K, now with the pair-weighted Hessians of the contact nodes) 4.0–4.5 ms.
 """
 from __future__ import annotations
