@@ -2,12 +2,12 @@
 P, then sheared by Q < μP; the stick zone, the tangential traction and the force ratio per
 enforcement, master smoothing and mesh level against Johnson's analytic solution.
 
-    .venv/bin/python benchmarks/cattaneo_mindlin.py                       # 3 levels x 4 x 3
+    .venv/bin/python benchmarks/cattaneo_mindlin.py                       # 3 levels x 5 x 3
     .venv/bin/python benchmarks/cattaneo_mindlin.py --levels 0 --enforcements alm-stick
     .venv/bin/python benchmarks/cattaneo_mindlin.py --redraw              # table + plot only
 
 The scene ``demos/scenes/cattaneo_mindlin.toml``: half-disks R = 1 (E = 1000, ν = 0.3,
-Neo-Hooke), the upper one pressed by its flat top in two steps (P ≈ 1), then a tangential
+Neo-Hooke), the upper one pressed by its flat top in four steps (P ≈ 1), then a tangential
 dead load Q on that top at Q/(μP) = 0.3, 0.6, 0.9 (t = 2, 3, 4; one step each), μ = 0.3.
 Level L: element size h_c = a/(10·2^L) on the slave arc near the contact, 1.37 h_c on the
 master's (non-matching). Per run and shear state, with P the measured normal contact force
@@ -27,7 +27,8 @@ nodal values in the current configuration, x measured from the pressure's centro
 Writes ``docs/cattaneo_mindlin.json`` (every run's numbers and nodal tractions) and
 ``docs/cattaneo_mindlin.png`` (q(x) against the analytic curve at each level, multipliers
 and ALM, no smoothing). An enforcement "type:basis" picks the mortar basis:
-``alm-stick:dual``, ``lagrange:standard`` (the multipliers with the ALM's default basis). Runs one at a time (the machine is shared): 28 min for all 36 under load.
+``alm-stick:dual``, ``lagrange:standard`` (the multipliers with the ALM's default basis).
+Runs one at a time (the machine is shared): 15 min for all 45 under load (2026-12-05).
 """
 from __future__ import annotations
 
