@@ -352,7 +352,10 @@ for solver in ("mumps", "gmres-gamg"):
         res = solve(scene_variant("half_rings", solver), log=lambda s: None)
     handed = any("kept MUMPS factorization" in str(w.message) for w in seen)
     p[solver] = res.pairs[0].interface()["pressure"]
-    print(MPI.COMM_WORLD.rank, solver, res.converged, handed, flush=True)
+    # one line from rank 0: the ranks' own prints interleave
+    every = MPI.COMM_WORLD.gather((solver, bool(res.converged), handed))
+    if MPI.COMM_WORLD.rank == 0:
+        print(*(f"{r} {s} {c} {h}" for r, (s, c, h) in enumerate(every)), sep="\\n")
 if MPI.COMM_WORLD.rank == 0:
     d = np.abs(p["mumps"] - p["gmres-gamg"]).max() / p["mumps"].max()
     print("difference", d)

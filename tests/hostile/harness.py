@@ -152,9 +152,16 @@ def ours(err: str) -> str:
     lines ("mca_fbtl_posix_pwritev: error in (p)write(v): ..." on a full disk); and without
     MPICH's line for MPI_Abort ("Abort(1) on node 0 (rank 0 in comm 0): ...") and the
     copy of the aborting rank's last line that MPICH's launcher sometimes forwards again
-    with it (seen with mpiexec -prepend-rank: both from rank 0, written once)."""
+    with it (seen with mpiexec -prepend-rank: both from rank 0, written once); and the text
+    of rank 0's last stdout log line that Open MPI 5 sometimes forwards on stderr, without
+    its newline, in front of the error line of an aborting run (seen on Debian 13:
+    "  warning: body ...(a singular stiffness)fenicsx-mortar: error: ...", the warning
+    missing from stdout)."""
     kept, inside, aborted = [], False, False
     for line in err.splitlines(keepends=True):
+        ours_at = line.find("fenicsx-mortar: ")
+        if ours_at > 0 and line.startswith("  "):      # the runner's log lines are indented
+            line = line[ours_at:]
         if line.startswith("-----"):
             inside = not inside
         elif re.match(r"Abort\(\d+\) on node \d+ ", line):
