@@ -282,12 +282,18 @@ def _probe(settings: SolverSettings, user: Mapping[str, str]) -> list[str]:
     opts = PETSc.Options()
     for k, v in options.items():
         opts[prefix + k] = v
-    A = PETSc.Mat().createAIJ([2, 2], nnz=1, comm=PETSc.COMM_SELF)
+    # a multigrid makes (and configures) its levels only for a matrix large enough to
+    # coarsen: a 1D Laplacian then, else the 2 x 2 identity
+    n = 1000 if any(k.startswith(("mg_levels_", "mg_coarse_")) for k in user) else 2
+    A = PETSc.Mat().createAIJ([n, n], nnz=3, comm=PETSc.COMM_SELF)
     snes = PETSc.SNES().create(PETSc.COMM_SELF)
     try:
         A.setUp()
-        A.setValue(0, 0, 1.0)
-        A.setValue(1, 1, 1.0)
+        for i in range(n):
+            A.setValue(i, i, 2.0 if n > 2 else 1.0)
+            if n > 2 and i > 0:
+                A.setValue(i, i - 1, -1.0)
+                A.setValue(i - 1, i, -1.0)
         A.assemble()
         snes.setOptionsPrefix(prefix)
         snes.setFunction(lambda s, x, f: x.copy(f), A.createVecLeft())
@@ -295,7 +301,7 @@ def _probe(settings: SolverSettings, user: Mapping[str, str]) -> list[str]:
         snes.setFromOptions()
         snes.getKSP().setFromOptions()
         if any(k.startswith(FACTOR_OPTIONS) for k in user):
-            # read at the first factorization: factorize the 2 x 2 identity
+            # read at the first factorization or multigrid set-up
             snes.getKSP().setOperators(A)
             snes.getKSP().setUp()
         lib = _libpetsc()

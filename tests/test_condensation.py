@@ -279,6 +279,32 @@ def test_a_weak_amg_hands_over_to_a_factorization(monkeypatch):
     assert np.abs(pa - pb).max() <= 1e-8 * pa.max()
 
 
+def test_multigrid_level_options_reach_the_levels(monkeypatch):
+    """A scene's -mg_levels_* option (GAMG's level smoothers) passes the checks and is
+    what the levels of the condensed solve use; with MUMPS it is refused as unread."""
+    from fenicsx_mortar.condensation import system as csys
+    from fenicsx_mortar.scene import SceneError
+    scene = scene_variant("hertz", "gmres-gamg")
+    scene.solver.petsc = {"-mg_levels_ksp_max_it": 1}
+    seen = []
+    original = csys.solve_lagged
+
+    def record(ksp, lag, f, y):
+        out = original(ksp, lag, f, y)
+        pc = ksp.getPC()
+        seen.append([pc.getMGSmoother(k).getTolerances()[3]
+                     for k in range(1, pc.getMGLevels())])
+        return out
+
+    monkeypatch.setattr(csys, "solve_lagged", record)
+    solved(scene)
+    assert seen and all(its == [1] * len(its) and its for its in seen)
+    scene = scene_variant("hertz", "mumps")
+    scene.solver.petsc = {"-mg_levels_ksp_max_it": 1}
+    with pytest.raises(SceneError, match="mg_levels_ksp_max_it: not read by PETSc"):
+        solved(scene)
+
+
 # ------------------------------------------------------------------------------ MPI
 
 MPI_SCENES = ("hertz", "block_on_slab", "half_rings")

@@ -385,7 +385,8 @@ def _check_generator(ms: MeshSource) -> None:
                          f"more than the limit of {LIMITS['cells']:,} (memory and time)")
 
 
-_PETSC_PREFIXES = ("-snes_", "-ksp_", "-pc_", "-mat_")
+#: the Newton solver's, its KSP's, PC's and matrices', and a multigrid's level solvers'
+_PETSC_PREFIXES = ("-snes_", "-ksp_", "-pc_", "-mat_", "-mg_levels_", "-mg_coarse_")
 #: options that would replace the convergence rule (docs/scenes.md §2.7) or open a window
 _PETSC_REFUSED = {"-snes_type": "the solver is Newton (newtonls); its convergence rule "
                                 "depends on it",
@@ -396,7 +397,8 @@ def _check_petsc_option(k: str, v) -> None:
     """Before PETSc sees them (guards.check_petsc_options then asks PETSc itself): the
     option's form, and no value that names a file (a viewer writes where it says)."""
     if not k.startswith(_PETSC_PREFIXES):
-        raise SceneError(f"solver.petsc: option {k!r} is not a -snes_/-ksp_/-pc_/-mat_ option")
+        raise SceneError(f"solver.petsc: option {k!r} is not a -snes_/-ksp_/-pc_/-mat_/"
+                         "-mg_levels_/-mg_coarse_ option")
     if not re.fullmatch(r"-[a-z][a-z0-9_]*", k):
         raise SceneError(f"solver.petsc: option {k!r} is not an option name "
                          "(lower-case letters, digits and '_')")

@@ -526,6 +526,9 @@ PETSC = [
     ("unknown_line_search", "-snes_linesearch_type", {"-snes_linesearch_type": "xyz"}, "wrong"),
     ("never_read", "-mat_mumps_icntl_99", {"-mat_mumps_icntl_99": 50}, "ignored"),
     ("view_never_read", "-snes_view", {"-snes_view": True}, "ignored"),
+    # a multigrid level option with the default solver (MUMPS at this size): never read
+    ("mg_levels_without_multigrid", "-mg_levels_ksp_max_it", {"-mg_levels_ksp_max_it": 1},
+     "ignored"),
     ("viewer_file_outside", "-snes_monitor", {"-snes_monitor": "ascii:../outside.txt"}, "wrong"),
     ("viewer_binary_file", "-ksp_view_mat", {"-ksp_view_mat": "binary:mat.bin"}, "wrong"),
     ("x_window", "-snes_monitor_lg_residualnorm", {"-snes_monitor_lg_residualnorm": True},
