@@ -122,10 +122,13 @@ def solve(scene: Scene, out: str | Path | None = None, comm: MPI.Comm = MPI.COMM
     stop = _StopRequest(comm)
     problem = _problem(scene, dom, bulk, pairs, timings, stop)
     ndofs = dx.dof_count(bulk.V)
-    log(f"  dofs: {ndofs}, ranks: {comm.size}")
+    solver = problem.newton.settings.linear_solver        # "auto" resolved by size
+    log(f"  dofs: {ndofs}, ranks: {comm.size}, linear solver: {solver}"
+        + (" (auto)" if scene.solver.linear_solver == "auto" else ""))
 
     summary = {"title": scene.title, "converged": False, "message": "running",
                "effects": scene.effects(), "dofs": ndofs, "ranks": comm.size,
+               "linear_solver": solver,
                "steps": steps, "timings": timings, "warnings": list(dom.warnings)}
     outputs = _Outputs(scene, out, comm, bulk, stress, pairs, fingerprints, (k0, t0), restart,
                        timings, log) if out is not None else None
