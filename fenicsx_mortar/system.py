@@ -256,8 +256,8 @@ def near_nullspace(V) -> PETSc.NullSpace:
 
 #: displacement dofs from which ``linear_solver = "auto"`` condenses dual multipliers and
 #: solves with GMRES + GAMG (docs/performance.md §7: ahead of MUMPS on Hertz from 124k dofs,
-#: 1.8-2.6x; on large sliding, where it hands over to a kept factorization, behind at 108k
-#: and ahead at 250k and 500k)
+#: 1.8-2.6x; on large sliding, where it hands over to a kept factorization, behind at 108k,
+#: even at 242k, ahead at 503k)
 AUTO_AMG_DOFS = 200_000
 
 
@@ -277,8 +277,7 @@ def resolve_linear_solver(settings, pairs, n_dofs: int):
     if settings.linear_solver != "auto":
         return settings
     from .condensation import condensable
-    amg = (n_dofs >= AUTO_AMG_DOFS and any(p.unknowns for p in pairs)
-           and condensable(pairs))
+    amg = n_dofs >= AUTO_AMG_DOFS and condensable(pairs)   # (condensable: has multipliers)
     return dataclasses.replace(settings, linear_solver="gmres-gamg" if amg else "mumps")
 
 

@@ -91,9 +91,7 @@ class AugmentedLagrangian(Enforcement):
         # 30 ε₀ under 407 ε₀ normal held the friction's KKT at 2-5e-10 over the tolerance
         # 1e-10 for 22 updates whose forces Newton could not resolve (solves of 0
         # iterations; Cattaneo-Mindlin a/10, B-spline master, dual basis: 30 updates)
-        seen = st.A > 0
-        st.gap_noise = np.where(seen, self.force_resolution / (
-            st.epsilon_t * np.where(seen, st.A, 1.0)), 0.0) if self.force_resolution else 0.0
+        st.gap_noise = self.gap_noise(st.A, st.epsilon_t)
         # the friction statuses the last solve converged to, for the next solve's first
         # iterate only (friction.Coulomb.update)
         st.held_status, self._held = self._held, None

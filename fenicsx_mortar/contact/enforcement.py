@@ -97,18 +97,20 @@ class Enforcement:
         c = np.maximum(c - self.epsilon0 * (self.gap_resolution + noise), 0.0)
         return c / p.max() if p.max(initial=0.0) > 0 else c
 
-    def gap_noise(self, A: np.ndarray) -> np.ndarray | float:
+    def gap_noise(self, A: np.ndarray, epsilon: np.ndarray | None = None
+                  ) -> np.ndarray | float:
         """Per node, how far Newton's answer may put the average gap g̃_j/A_j off for its
-        residual tolerance: force_resolution/(ε_j A_j) (0 where A_j = 0). The KKT test asks
+        residual tolerance: force_resolution/(ε_j A_j) (0 where A_j = 0; ``epsilon``: the
+        stiffness that turns the gap into force, default the normal ε). The KKT test asks
         no more (the finer Cattaneo-Mindlin ALM stagnated at 1.02e-10 over a tolerance of
         1e-10, the gaps set by the Newton tolerance, not by the augmentations). Applied
         with friction only: frictionless runs stay as they were (the frictionless c06a
         would stop one augmentation earlier, 7 instead of 8)."""
         if not self.force_resolution:
             return 0.0
+        eps = self.epsilon if epsilon is None else epsilon
         seen = A > 0
-        return np.where(seen, self.force_resolution / (self.epsilon * np.where(seen, A, 1.0)),
-                        0.0)
+        return np.where(seen, self.force_resolution / (eps * np.where(seen, A, 1.0)), 0.0)
 
     def kkt_residual(self, g: np.ndarray, A: np.ndarray, p: np.ndarray,
                      tangential=None) -> float:
