@@ -51,6 +51,8 @@ class StepResult:
         augmentations: Newton solves after the first (Uzawa updates, penalty continuation).
         reason: Why it did not converge ("" if it did).
         workspace: MUMPS ran out of workspace (a larger one, not a cut, is the cure).
+        stalled: Newton ran out of iterations or its line search failed (full steps may
+            go through, stepping.full_newton_steps).
     """
     converged: bool
     iterations: int = 0
@@ -58,6 +60,7 @@ class StepResult:
     augmentations: int = 0
     reason: str = ""
     workspace: bool = False
+    stalled: bool = False
 
 
 class ActiveSetMonitor:
@@ -376,6 +379,7 @@ class NewtonSolver:
                 res.reason = f"Newton failed: {_REASONS.get(reason, reason)} after " \
                              f"{self.snes.getIterationNumber()} iterations, residuals " \
                              + ", ".join(f"{r:.3e}" for r in self.history)
+                res.stalled = reason in (_REASON.DIVERGED_MAX_IT, _REASON.DIVERGED_LINE_SEARCH)
                 if reason == _REASON.DIVERGED_LINEAR_SOLVE:
                     res.reason += "; " + po.linear_failure(self.snes)
                     res.workspace = po.out_of_workspace(self.snes)

@@ -26,6 +26,29 @@ def test_full_newton_retry_rescues_stiff_penalty_hertz(monkeypatch):
     assert rec["force_on_slave"][1] == pytest.approx(1.0, rel=1e-8)
 
 
+@pytest.mark.parametrize("stalled", [True, False])
+def test_only_a_stalled_newton_is_retried_with_full_steps(stalled):
+    """A Newton solve that ran out of iterations (its line search stuck on a kink) is tried
+    again with full steps; one that failed otherwise (a residual that is not finite, a
+    rejected state, a failed linear solve) goes straight to the cut: full steps would go
+    the same way (see full_newton_steps)."""
+    from types import SimpleNamespace
+
+    from fenicsx_mortar.newton import StepResult
+    from fenicsx_mortar.stepping import full_newton_steps
+    searches, retried = [], []
+    newton = SimpleNamespace(line_search="l2-full", pairs=[], set_line_search=searches.append)
+    inc = SimpleNamespace(stepper=SimpleNamespace(problem=SimpleNamespace(newton=newton)),
+                          below_floor=False, out_of_cuts=False,
+                          attempt=lambda: StepResult(converged=True),
+                          retried=lambda how, reason: retried.append(how))
+    failed = StepResult(converged=False, reason="Newton failed", stalled=stalled)
+    res = full_newton_steps(inc, failed)
+    assert res.converged == stalled
+    assert retried == (["full Newton steps"] if stalled else [])
+    assert searches == (["basic", "l2-full"] if stalled else [])
+
+
 def test_a_failed_factorization_does_not_poison_the_next_solve():
     """A singular stiffness (no material right of x = 1/2: zero rows) fails MUMPS with
     INFOG(1) = -10; once the material is back, the same problem solves, to the solution of
