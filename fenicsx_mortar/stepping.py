@@ -275,7 +275,7 @@ def full_newton_steps(inc: _Increment, res: StepResult) -> StepResult:
     steps go through (Hertz, mortar, penalty 10 E/h at h = a/2). So only after a stall
     (StepResult.stalled); not after a residual that was not finite (full steps go further
     where F is undefined), a converged state that was rejected, a cycling active set or a
-    failed linear solve: over the test suite not one of 58 such retries converged, and on
+    failed linear solve: over the test suite not one of 44 such retries converged, and on
     large sliding (docs/benchmarks.md B3 at 0.5M dofs) they were a third of the failed
     Newton iterations. With path-dependent pairs (friction) only when the increment cannot
     be cut any more: another attempt sequence is another (equally valid) load path.
