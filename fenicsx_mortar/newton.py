@@ -28,6 +28,7 @@ from petsc4py import PETSc
 
 from . import _dolfinx as dx
 from . import petsc_options as po
+from .contact.assembly import reserve
 from .linesearch import FullStepOrSecant
 from .settings import SolverSettings
 from .system import system_class
@@ -291,8 +292,21 @@ class NewtonSolver:
 
     def _jacobian(self, snes, x, A, P) -> None:
         t0 = time.perf_counter()
-        self._timed_bulk(lambda: self.system.assemble_jacobian(
-            A, self._add_pair_jacobians if self.pairs else None))
+        add = self._add_pair_jacobians if self.pairs else None
+        if self.pairs and not getattr(self.system, "condensed", False):
+            # the tangents first: new couplings (sliding) grow A once, before the assembly
+            with self.timings("contact"):
+                tangents = [p.tangent() for p in self.pairs]
+                slots = [p.new_slots(K) for p, K in zip(self.pairs, tangents)]
+                if A.assembled:
+                    reserve(A, np.concatenate([r for r, _ in slots]),
+                            np.concatenate([c for _, c in slots]))
+
+            def add(A):
+                with self.timings("contact"):
+                    for p, K in zip(self.pairs, tangents):
+                        p.insert_tangent(A, K)
+        self._timed_bulk(lambda: self.system.assemble_jacobian(A, add))
         self._callback_time += time.perf_counter() - t0
 
     def _add_pair_jacobians(self, A) -> None:

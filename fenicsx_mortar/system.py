@@ -9,7 +9,8 @@
   multipliers live where their nodes' rows are. The matrix has block size 2 and DOLFINx's
   local-to-global map (shifted by the multipliers of the lower ranks), so the bulk forms
   are assembled into it directly; its sparsity is the bulk's and the predicted contact
-  couplings', preallocated exactly.
+  couplings', preallocated exactly, and grown once before an assembly that needs more
+  (a slave sliding past new master nodes: ``contact.assembly.reserve``).
 
 Both give the solver the same operations: the vector ``x`` of unknowns, ``push(x)`` (x →
 the displacement Function and the pairs' multipliers), ``pull(x)`` (the reverse), and the
@@ -256,8 +257,8 @@ def near_nullspace(V) -> PETSc.NullSpace:
 
 #: displacement dofs from which ``linear_solver = "auto"`` condenses dual multipliers and
 #: solves with GMRES + GAMG (docs/performance.md §7: ahead of MUMPS on Hertz from 124k dofs,
-#: 1.8-2.6x; on large sliding, where it hands over to a kept factorization, behind at 108k,
-#: even at 242k, ahead at 503k)
+#: 1.8-2.6x; on large sliding, where it hands over to a kept factorization, behind at 108k
+#: (1.6x), by 4 % at 242k, ahead at 503k in all (1.18x)
 AUTO_AMG_DOFS = 200_000
 
 

@@ -16,6 +16,7 @@ import warnings
 from typing import Mapping, Sequence
 
 import numpy as np
+import scipy.sparse as sp
 from mpi4py import MPI
 from petsc4py import PETSc
 
@@ -263,9 +264,29 @@ class ContactPair:
             A: The Jacobian matrix.
             bc_dofs: Dirichlet dofs (unused: the system's ``skip`` holds them globally).
         """
-        K = self.tangent()
+        self.insert_tangent(A, self.tangent())
+
+    def insert_tangent(self, A: "PETSc.Mat", K: sp.spmatrix) -> None:
+        """Add a tangent of :meth:`tangent` to the Jacobian (as :meth:`add_jacobian`).
+
+        Args:
+            A: The Jacobian matrix.
+            K: The tangent.
+        """
         with self._timed("contact_insertion"):
             assembly.add_to_matrix(A, K, self.index, self.skip, self.n_global, self.layouts)
+
+    def new_slots(self, K: sp.spmatrix) -> tuple[np.ndarray, np.ndarray]:
+        """The global (rows, columns) inserting the tangent ``K`` may need in the Jacobian
+        (none when it has the last insertion's structure), for ``assembly.reserve``.
+
+        Args:
+            K: A tangent of :meth:`tangent`.
+
+        Returns:
+            Rows and columns.
+        """
+        return assembly.new_slots(K, self.index, self.skip, self.layouts)
 
     def attach(self, index: np.ndarray, skip: np.ndarray, n_global: int) -> None:
         """Where the pair's terms go in the global system (called by :mod:`.system`).
@@ -453,7 +474,7 @@ class ContactPair:
         s, m = self.slave, self.master
         # three of the finest segment's radius: the coarse far part of a graded slave would
         # otherwise preallocate dense blocks to half the master (Hertz a/20: 460k stored
-        # entries against 297k); couplings beyond it are inserted when they appear
+        # entries against 297k); couplings beyond it grow the matrix when they appear
         ps, pm = candidate_pairs(s.X, s.seg, m.X, m.seg, 3.0 * np.min(self.radius))
         curve = self._curve
         stencil = curve.stencil(pm) if len(pm) else np.zeros((0, curve.stencil_size),
