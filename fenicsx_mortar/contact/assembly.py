@@ -380,14 +380,19 @@ class _Pattern:
                  "rows")
 
 
+def _repeats(pat: _Pattern | None, K: sp.coo_matrix, dofs: np.ndarray,
+             skip: np.ndarray) -> bool:
+    """Whether ``K`` has the triplet structure of the insertion ``pat``."""
+    return (pat is not None and pat.dofs is dofs and pat.skip is skip
+            and np.array_equal(pat.row, K.row) and np.array_equal(pat.col, K.col))
+
+
 def new_slots(K: sp.spmatrix, dofs: np.ndarray, skip: np.ndarray,
               lay: Layouts = _shared) -> tuple[np.ndarray, np.ndarray]:
     """The global (rows, columns) :func:`add_to_matrix` would insert ``K`` at, when its
     triplet structure is not that of the last insertion (else none: those slots exist)."""
     K = K.tocoo()
-    pat = lay.insertion
-    if (pat is not None and pat.dofs is dofs and pat.skip is skip
-            and np.array_equal(pat.row, K.row) and np.array_equal(pat.col, K.col)):
+    if _repeats(lay.insertion, K, dofs, skip):
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
     out = _skipped(dofs, skip, lay)
     sel = ~out[K.row] & ~out[K.col]
@@ -437,8 +442,7 @@ def add_to_matrix(A: PETSc.Mat, K: sp.spmatrix, dofs: np.ndarray, skip: np.ndarr
     K = K.tocoo()
     pat = lay.insertion
     r0, r1 = A.getOwnershipRange()
-    if (pat is not None and pat.range == (r0, r1) and pat.dofs is dofs and pat.skip is skip
-            and np.array_equal(pat.row, K.row) and np.array_equal(pat.col, K.col)):
+    if _repeats(pat, K, dofs, skip) and pat.range == (r0, r1):
         vals = np.bincount(pat.slot, weights=K.data[pat.sel], minlength=pat.indices.shape[0])
         A.setValuesIJV(pat.indptr, pat.indices, vals, addv=PETSc.InsertMode.ADD,
                        rowmap=pat.rows)
