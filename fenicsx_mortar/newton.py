@@ -298,9 +298,11 @@ class NewtonSolver:
             with self.timings("contact"):
                 tangents = [p.tangent() for p in self.pairs]
                 slots = [p.new_slots(K) for p, K in zip(self.pairs, tangents)]
-                if A.assembled:
-                    reserve(A, np.concatenate([r for r, _ in slots]),
-                            np.concatenate([c for _, c in slots]))
+                if A.assembled and reserve(A, np.concatenate([r for r, _ in slots]),
+                                           np.concatenate([c for _, c in slots])):
+                    # a factorization of the old pattern must not be refactored in place
+                    # (MUMPS through PETSc 3.22 under MPI corrupted its memory)
+                    self._reset_linear_solver()
 
             def add(A):
                 with self.timings("contact"):
