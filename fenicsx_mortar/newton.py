@@ -292,8 +292,8 @@ class NewtonSolver:
 
     def _jacobian(self, snes, x, A, P) -> None:
         t0 = time.perf_counter()
-        add = self._add_pair_jacobians if self.pairs else None
-        if self.pairs and not getattr(self.system, "condensed", False):
+        add = None
+        if self.pairs and not getattr(self.system, "condensed", False):  # (it takes them itself)
             # the tangents first: new couplings (sliding) grow A once, before the assembly
             with self.timings("contact"):
                 tangents = [p.tangent() for p in self.pairs]
@@ -310,11 +310,6 @@ class NewtonSolver:
                         p.insert_tangent(A, K)
         self._timed_bulk(lambda: self.system.assemble_jacobian(A, add))
         self._callback_time += time.perf_counter() - t0
-
-    def _add_pair_jacobians(self, A) -> None:
-        with self.timings("contact"):
-            for p in self.pairs:
-                p.add_jacobian(A, self.bc_dofs)
 
     def _converged(self, snes, it, norms):
         fnorm = norms[2]

@@ -6,9 +6,10 @@ sliding) rather than by PETSc's reallocation per row.
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
 from mpi4py import MPI  # noqa: F401  (before petsc4py: the PyPI wheel needs it)
 from petsc4py import PETSc
+
+from ..contact.assembly import pattern_with
 
 #: band of slave nodes (along the chain) whose couplings are preallocated around a node
 PREDICTED_BAND = 4
@@ -69,14 +70,8 @@ class KcPattern:
         added, preallocated exactly; the watched rows' pattern kept for the checks."""
         n_own = len(indptr) - 1
         N = self.n_global_u
-        P = sp.csr_matrix((np.ones(len(indices), dtype=np.int8), indices, indptr),
-                          shape=(n_own, N))
-        if len(rows):
-            keep = ~np.isin(rows, self.skip_u) & ~np.isin(cols, self.skip_u)
-            X = sp.csr_matrix((np.ones(int(keep.sum()), dtype=np.int8),
-                               (rows[keep] - r0, cols[keep])), shape=(n_own, N))
-            P = P + X
-        P.sort_indices()
+        keep = ~np.isin(rows, self.skip_u) & ~np.isin(cols, self.skip_u)
+        P = pattern_with(indptr, indices, N, rows[keep] - r0, cols[keep])
         w = self._watch[(self._watch >= r0) & (self._watch < r0 + n_own)] - r0
         sub = P[w].tocoo()
         self._pattern = np.sort((w[sub.row] + r0) * np.int64(N) + sub.col)

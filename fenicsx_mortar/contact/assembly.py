@@ -399,6 +399,28 @@ def new_slots(K: sp.spmatrix, dofs: np.ndarray, skip: np.ndarray,
     return dofs[K.row[sel]].astype(np.int64), dofs[K.col[sel]].astype(np.int64)
 
 
+def pattern_with(indptr: np.ndarray, indices: np.ndarray, n_cols: int,
+                 rows: np.ndarray | None = None, cols: np.ndarray | None = None
+                 ) -> sp.csr_matrix:
+    """A CSR pattern (rows local, columns global) with the slots (rows, cols) added,
+    sorted (values: ones).
+
+    Args:
+        indptr, indices: The pattern.
+        n_cols: The number of columns.
+        rows, cols: Slots to add (local rows).
+
+    Returns:
+        The pattern as an int8 matrix.
+    """
+    P = sp.csr_matrix((np.ones(len(indices), dtype=np.int8), indices, indptr),
+                      shape=(len(indptr) - 1, n_cols))
+    if rows is not None and len(rows):
+        P = P + sp.csr_matrix((np.ones(len(rows), dtype=np.int8), (rows, cols)), shape=P.shape)
+    P.sort_indices()
+    return P
+
+
 def reserve(A: PETSc.Mat, rows: np.ndarray, cols: np.ndarray) -> bool:
     """Give the assembled ``A`` the slots (rows, cols) (global, any rank's rows) it lacks,
     in one re-preallocation: PETSc's own growth copies the whole matrix for every row that
@@ -420,16 +442,11 @@ def reserve(A: PETSc.Mat, rows: np.ndarray, cols: np.ndarray) -> bool:
     own = (rows >= r0) & (rows < r1)
     rows, cols = rows[own] - r0, cols[own]
     indptr, indices, _ = A.getValuesCSR()
-    N = A.getSize()[1]
-    P = sp.csr_matrix((np.ones(len(indices), dtype=np.int8), indices, indptr),
-                      shape=(r1 - r0, N))
+    P = pattern_with(indptr, indices, A.getSize()[1])
     missing = np.asarray(P[rows, cols]).ravel() == 0 if len(rows) else np.zeros(0, bool)
     if not comm.allreduce(bool(missing.any()), op=MPI.LOR):
         return False
-    X = sp.csr_matrix((np.ones(int(missing.sum()), dtype=np.int8),
-                       (rows[missing], cols[missing])), shape=P.shape)
-    P = P + X
-    P.sort_indices()
+    P = pattern_with(P.indptr, P.indices, P.shape[1], rows[missing], cols[missing])
     A.setPreallocationCSR((P.indptr.astype(PETSc.IntType), P.indices.astype(PETSc.IntType)))
     A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
     return True
