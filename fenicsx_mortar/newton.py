@@ -160,19 +160,24 @@ class NewtonSolver:
         should_stop: Called at every iteration; a non-empty string stops the solve.
         prefix: PETSc options prefix of the SNES.
         petsc_options: Options set under the prefix for the set-up (normalized names).
+        prolongations: A geometric multigrid's prolongations for the condensed system
+            (condensation/multigrid.py), finest first.
     """
 
     def __init__(self, residual, jacobian, u, bcs, settings: SolverSettings,
                  pairs: Sequence, timings: Timings, matrix=None,
                  should_stop: Callable[[], str | None] = lambda: None,
-                 prefix: str = "", petsc_options: dict[str, str] | None = None):
+                 prefix: str = "", petsc_options: dict[str, str] | None = None,
+                 prolongations: Sequence = ()):
         self.should_stop = should_stop
         self.residual_form, self.jacobian_form, self.bcs = residual, jacobian, bcs
         self.settings, self.pairs, self.timings = settings, list(pairs), timings
         self.u = u
         kind = system_class(self.pairs, settings.linear_solver)
         #: the unknowns and their PETSc layout (system.py; condensation/)
-        self.system = kind(residual, jacobian, u, bcs, self.pairs, matrix, timings=timings)
+        extra = {"prolongations": prolongations} if prolongations else {}
+        self.system = kind(residual, jacobian, u, bcs, self.pairs, matrix, timings=timings,
+                           **extra)
         self.b, self.A, self.x = self.system.b, self.system.A, self.system.x
         self.bc_dofs = self.system.bc_dofs
         self.monitor = ActiveSetMonitor(self.pairs)

@@ -31,7 +31,8 @@ from mpi4py import MPI
 from . import _dolfinx as dx
 from . import petsc_options as po
 from .acceptance import Acceptance
-from .condensation import condensable
+from .condensation import condensable, multigrid
+from .condensation.multigrid import CoarseMesh
 from .newton import NewtonSolver, StepResult
 from .settings import SolverSettings, check_number
 from .system import resolve_linear_solver
@@ -69,6 +70,10 @@ class ContactProblem:
         timings: Seconds by phase (a :class:`~fenicsx_mortar.timings.Timings`), added to.
         should_stop: Called at every Newton iteration; a non-empty string (a signal's name)
             stops the solve (collective: the same on every rank).
+        coarse_meshes: The meshes u's mesh was refined from, coarsest first
+            (:class:`~fenicsx_mortar.condensation.multigrid.CoarseMesh`, the same on every
+            rank, each refined uniformly into the next): a geometric multigrid for
+            ``linear_solver = "gmres-gmg"``, which needs them and ``cell_tags``.
 
     Raises:
         ValueError: an argument that cannot work, named.
@@ -82,7 +87,8 @@ class ContactProblem:
                  max_augmentations: int = 30, cell_tags: dx.MeshTags | None = None,
                  body_names: Mapping[int, str] | None = None,
                  timings: Timings | None = None,
-                 should_stop: Callable[[], str | None] | None = None):
+                 should_stop: Callable[[], str | None] | None = None,
+                 coarse_meshes: Sequence[CoarseMesh] = ()):
         pairs = list(pairs)
         _check_forms(F, J, u)
         _check_pairs(pairs, u)
@@ -97,6 +103,7 @@ class ContactProblem:
         multipliers = any(p.unknowns for p in pairs)
         dual = condensable(pairs)
         po.check_solver_choice(settings, user, multipliers, condensable=dual)
+        _check_multigrid(settings, multipliers, coarse_meshes, cell_tags)
         po.check_packages(settings, user)
         unread = po.unread(settings, user)
         if unread:
@@ -121,10 +128,15 @@ class ContactProblem:
                 blocks = [b for p in self.pairs for b in p.couplings()]
                 matrix = dx.matrix_with_couplings(self.jacobian, u.function_space, blocks)
         #: the Newton driver (newton.py): SNES callbacks, convergence rule, state
+        prolongations = []
+        if settings.linear_solver == "gmres-gmg":
+            with self.timings("contact"):
+                prolongations = multigrid.prolongations(u.function_space, cell_tags,
+                                                        coarse_meshes, dx.bc_dofs(self.bcs))
         self.newton = NewtonSolver(self.residual, self.jacobian, u, self.bcs, settings,
                                    self.pairs, self.timings, matrix,
                                    should_stop or (lambda: None), petsc_options_prefix,
-                                   po.normalize(petsc_options))
+                                   po.normalize(petsc_options), prolongations)
         if matrix is not None and matrix is not self.newton.A:
             matrix.destroy()   # read once for the multipliers' pattern (system.py)
         self.newton.accept = Acceptance(u, self.pairs, settings.quadrature_degree,
@@ -287,6 +299,32 @@ def _check_forms(F, J, u) -> None:
     if J is None:
         raise ValueError("F is a compiled form: pass its compiled Jacobian J too (or pass "
                          "the UFL form, and J is derived)")
+
+
+def _check_multigrid(settings: SolverSettings, multipliers: bool, coarse_meshes,
+                     cell_tags) -> None:
+    """``gmres-gmg`` has its hierarchy: multipliers to condense, coarse meshes, cell tags."""
+    if settings.linear_solver != "gmres-gmg":
+        return
+    key = "settings.linear_solver = 'gmres-gmg'"
+    if not multipliers:
+        raise ValueError(f"{key} solves the condensed system of dual multipliers; without "
+                         "multipliers (penalty, ALM) use 'gmres-gamg' or 'mumps'")
+    if not coarse_meshes or cell_tags is None:
+        raise ValueError(f"{key} needs the meshes u's mesh was refined from "
+                         "(coarse_meshes, coarsest first) and cell_tags (the bodies); "
+                         "without them use 'gmres-gamg'")
+    for i, c in enumerate(coarse_meshes):
+        if not isinstance(c, CoarseMesh):
+            raise ValueError(f"coarse_meshes[{i}]: a CoarseMesh, got {type(c).__name__}")
+        p, cells, body = (np.asarray(a) for a in (c.points, c.cells, c.cell_body))
+        ok = (p.ndim == 2 and p.shape[1] == 2 and np.isfinite(p).all()
+              and cells.ndim == 2 and cells.shape[1] in (3, 4) and len(cells) > 0
+              and np.issubdtype(cells.dtype, np.integer) and body.shape == (len(cells),)
+              and cells.min() >= 0 and cells.max() < len(p))
+        if not ok:
+            raise ValueError(f"coarse_meshes[{i}]: points (n, 2) finite, cells (m, 3 or 4) "
+                             "node indices below n, cell_body (m,)")
 
 
 def _check_pairs(pairs: list, u) -> None:

@@ -13,12 +13,13 @@ from typing import Literal
 LINE_SEARCHES = ("basic", "bt", "l2", "cp", "l2-full")
 #: linear solvers (docs/scenes.md): by size ("auto", system.py resolve_linear_solver), a
 #: direct factorization by name, MUMPS on the condensed system of dual multipliers, or
-#: GMRES with an algebraic multigrid (PETSc's GAMG, hypre's BoomerAMG)
+#: GMRES with an algebraic multigrid (PETSc's GAMG, hypre's BoomerAMG) or a geometric one
+#: on the meshes the problem's was refined from
 LINEAR_SOLVERS = ("auto", "mumps", "superlu_dist", "condensed-mumps", "gmres-gamg",
-                  "gmres-hypre")
+                  "gmres-hypre", "gmres-gmg")
 #: the solvers that take multipliers through the condensed displacement system (dual
 #: basis only; docs/condensation.md)
-CONDENSED_SOLVERS = ("condensed-mumps", "gmres-gamg", "gmres-hypre")
+CONDENSED_SOLVERS = ("condensed-mumps", "gmres-gamg", "gmres-hypre", "gmres-gmg")
 
 
 @dataclass(frozen=True)
@@ -106,8 +107,9 @@ class SolverSettings:
         linear_solver: ``"auto"`` (default: ``"gmres-gamg"`` from
             :data:`~.system.AUTO_AMG_DOFS` displacement dofs with dual multipliers, else
             ``"mumps"``), ``"mumps"``, ``"superlu_dist"``, ``"condensed-mumps"``,
-            ``"gmres-gamg"`` or ``"gmres-hypre"`` (LINEAR_SOLVERS; with multipliers the
-            last three condense the dual ones, docs/condensation.md).
+            ``"gmres-gamg"``, ``"gmres-hypre"`` or ``"gmres-gmg"`` (LINEAR_SOLVERS; with
+            multipliers the last four condense the dual ones, docs/condensation.md;
+            ``"gmres-gmg"`` needs the coarse meshes, ContactProblem's ``coarse_meshes``).
         quadrature_degree: Of the bulk forms a scene builds, and of the inverted-cell check.
         petsc: More PETSc options (``-snes_*``, ``-ksp_*``, ``-pc_*``, ``-mat_*``).
     """
@@ -116,7 +118,7 @@ class SolverSettings:
     max_iterations: int = 25
     line_search: Literal["basic", "bt", "l2", "cp", "l2-full"] = "l2-full"
     linear_solver: Literal["auto", "mumps", "superlu_dist", "condensed-mumps", "gmres-gamg",
-                           "gmres-hypre"] = "auto"
+                           "gmres-hypre", "gmres-gmg"] = "auto"
     quadrature_degree: int = 2  # full Gauss integration of P1/Q1 (2x2 on quadrilaterals)
     petsc: dict[str, bool | int | float | str] = field(default_factory=dict)
 

@@ -10,7 +10,7 @@ from . import _checks, _gmsh
 
 def build(model, *, cell: str = "quadrilateral", h_contact: float = 0.05, h_far: float = 0.1,
           R: float = 1.0, refine_radius: float = 0.15, grade_to: float | None = None,
-          refine: int = 0) -> None:
+          refine: int = 0) -> list:
     """Half-disk "disk" (lower half of the circle of radius R centred at (0, R), flat edge
     y = R) on the block "block" [-1, 1] x [-1, 0] (docs/benchmarks.md B2). They touch at (0, 0)
     only; each body has its own node there (no shared node).
@@ -40,6 +40,9 @@ def build(model, *, cell: str = "quadrilateral", h_contact: float = 0.05, h_far:
                        at about 2M dofs, h = 0.0082 refined twice takes ~15 s where
                        meshing at h/4 directly takes many minutes (h/2: 131 s against
                        5.5 + 1.4 s; docs/performance.md).
+
+    Returns the meshes before each refinement, coarsest first (the hierarchy of
+    ``linear_solver = "gmres-gmg"``; empty without refinement).
 
     Physical groups (tags in brackets):
         dim 2: "disk" [1], "block" [2].
@@ -100,9 +103,7 @@ def build(model, *, cell: str = "quadrilateral", h_contact: float = 0.05, h_far:
     for attempt in range(4):
         model.mesh.generate(2)
         if _gmsh.is_all(model, cell):
-            for _ in range(refine):
-                model.mesh.refine()
-            return
+            return _gmsh.refine(model, refine)
         model.mesh.clear()
         shrink = 1.0 - 1e-3 * (attempt + 1)
         field.setNumber(threshold, "SizeMin", h_contact * shrink)

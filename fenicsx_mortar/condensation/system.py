@@ -50,11 +50,14 @@ class CondensedSystem(KcPattern, MultiplierSystem):
         matrix: A DOLFINx matrix with the bulk and the predicted contact couplings (its
             pattern seeds Kc's; destroyed here).
         timings: Seconds by phase: the condensation counts as ``contact``.
+        prolongations: A geometric multigrid's prolongations, finest first
+            (multigrid.prolongations): the inner PC becomes PETSc's MG on them.
     """
 
     condensed = True
 
-    def __init__(self, residual, jacobian, u, bcs, pairs, matrix, timings=None):
+    def __init__(self, residual, jacobian, u, bcs, pairs, matrix, timings=None,
+                 prolongations: Sequence[PETSc.Mat] = ()):
         dof_map, n_blocks, comm = self._layout(residual, jacobian, u, bcs, pairs)
         self.timings = timings if timings is not None else Timings()
         self.comm = comm
@@ -106,6 +109,7 @@ class CondensedSystem(KcPattern, MultiplierSystem):
         #: when a Krylov inner solve rebuilds its preconditioner (set by configure)
         self.lag: Lag | None = None
         self.last_solve = {"iterations": 0, "reason": 0, "residual": 0.0, "rtol": 0.0}
+        self._prolongations = list(prolongations)
 
     # -- the Jacobian -------------------------------------------------------------------
     def assemble_jacobian(self, A, add_contact) -> None:
@@ -365,7 +369,17 @@ class CondensedSystem(KcPattern, MultiplierSystem):
 
     def owned_objects(self) -> list:
         return [self.b_u, self._lgmap, self._lgmap_u, self.Kc, self.inner, self._f, self._y,
-                self._all_cols, self._nullspace]
+                self._all_cols, self._nullspace, *self._prolongations]
+
+    def _multigrid(self) -> None:
+        """The inner PC a multigrid on the prolongations (PETSc makes the Galerkin products
+        again for a Kc with a grown pattern)."""
+        pc = self.inner.getPC()
+        n = len(self._prolongations)
+        pc.setType(PETSc.PC.Type.MG)
+        pc.setMGLevels(n + 1)
+        for i, P in enumerate(self._prolongations):
+            pc.setMGInterpolation(n - i, P)
 
     def configure(self, snes: PETSc.SNES, applied) -> None:
         """The SNES's KSP becomes the condensing one; the options under the prefix
@@ -377,6 +391,8 @@ class CondensedSystem(KcPattern, MultiplierSystem):
         ksp.setPythonContext(CondensedKSP(self, snes))
         ksp.getPC().setType(PETSc.PC.Type.NONE)
         self.inner.setOptionsPrefix(prefix)
+        if self._prolongations:
+            self._multigrid()
         applied.set_from_options(snes, extra=[self.inner])
         # a Krylov inner solve without a tolerance of the user's: inexact Newton
         krylov = self.inner.getType() != PETSc.KSP.Type.PREONLY

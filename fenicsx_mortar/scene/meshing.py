@@ -25,6 +25,8 @@ class Domain:
     cell_groups: dict[str, int]
     facet_groups: dict[str, int]
     warnings: list[str] = field(default_factory=list)
+    #: the meshes this one was refined from, coarsest first (a generator's ``refine``)
+    coarse_meshes: list = field(default_factory=list)
 
     def facets(self, names: str | list[str]) -> np.ndarray:
         """Local facet indices of one or more named curve groups."""
@@ -42,14 +44,16 @@ def load_generator(name: str):
 
 
 def _build_model(scene: Scene):
-    """Fill gmsh.model on this rank; return {dim: {name: tag}}. Raises SceneError."""
+    """Fill gmsh.model on this rank; return {dim: {name: tag}} and the coarse meshes of a
+    refined generator's mesh. Raises SceneError."""
     import gmsh
     ms = scene.mesh
+    coarse: list = []
     if ms.generator is not None:
         gmsh.model.add(ms.generator)
         try:
-            load_generator(ms.generator).build(gmsh.model, cell=ms.cell or "quadrilateral",
-                                               **ms.params)
+            coarse = load_generator(ms.generator).build(
+                gmsh.model, cell=ms.cell or "quadrilateral", **ms.params) or []
         except (TypeError, ValueError) as e:
             raise SceneError(f"mesh.params for generator {ms.generator!r}: {e}") from None
         except Exception as e:  # gmsh raises bare Exception ("Could not create line")
@@ -85,7 +89,7 @@ def _build_model(scene: Scene):
         raise SceneError("mesh: no physical surface groups (bodies need named 2D groups)")
     if ms.generator is None:
         _warn_nameless(scene, groups)
-    return groups
+    return groups, coarse
 
 
 def _warn_nameless(scene: Scene, groups: dict[int, dict[str, int]]) -> None:
@@ -321,12 +325,12 @@ def _gmsh_initialize(gmsh) -> None:
 def build_domain(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD) -> Domain:
     """Mesh the scene on rank 0, distribute it, and check every group the scene names."""
     import gmsh
-    groups, error = None, None
+    groups, coarse, error = None, None, None
     if comm.rank == 0:
         _gmsh_initialize(gmsh)
         gmsh.option.setNumber("General.Terminal", 0)
         try:
-            groups = _build_model(scene)
+            groups, coarse = _build_model(scene)
         except SceneError as e:
             error = str(e)
         except Exception as e:  # whatever gmsh raises: every rank must hear of it
@@ -337,11 +341,11 @@ def build_domain(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD) -> Domain:
         if comm.rank == 0:
             gmsh.finalize()
         raise SceneError(error)
-    groups = comm.bcast(groups, root=0)
+    groups, coarse = comm.bcast((groups, coarse), root=0)
     msh, ct, ft = dx.model_to_mesh(gmsh.model, comm, 0)
     if comm.rank == 0:
         gmsh.finalize()
-    dom = Domain(msh, ct, ft, groups[2], groups[1])
+    dom = Domain(msh, ct, ft, groups[2], groups[1], coarse_meshes=coarse)
     _check_groups(scene, dom, comm)
     dom.warnings = supports.check(scene, dom, comm)
     return dom

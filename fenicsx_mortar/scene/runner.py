@@ -189,7 +189,7 @@ def _problem(scene: Scene, dom: Domain, bulk: Bulk, pairs: list, timings: Timing
                                   default=0),
             cell_tags=dom.cell_tags,
             body_names={dom.cell_groups[b.group]: b.name for b in scene.bodies},
-            timings=timings, should_stop=stop.requested)
+            timings=timings, should_stop=stop.requested, coarse_meshes=dom.coarse_meshes)
 
 
 def _open_out(scene: Scene, out: Path | None, comm: MPI.Comm, restart: bool):

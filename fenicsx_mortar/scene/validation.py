@@ -289,6 +289,19 @@ def _check_solver(scene: Scene) -> None:
         raise SceneError(str(e)) from None
     for k, v in sv.petsc.items():
         _check_petsc_option(k, v)
+    refined = scene.mesh.generator is not None and (scene.mesh.params or {}).get("refine", 0)
+    if sv.linear_solver == "gmres-gmg" and not refined:
+        raise SceneError("solver.linear_solver = 'gmres-gmg': a geometric multigrid needs the "
+                         "meshes this one was refined from; mesh with a generator's "
+                         "params.refine >= 1 (hertz), or use 'gmres-gamg'")
+    from ..contact.registry import ENFORCEMENTS
+    if sv.linear_solver == "gmres-gmg" and not any(
+            c.enforcement.type in ENFORCEMENTS
+            and getattr(ENFORCEMENTS[c.enforcement.type], "unknowns", 0)
+            for c in scene.contacts):
+        raise SceneError("solver.linear_solver = 'gmres-gmg' solves the condensed system of "
+                         "dual multipliers; no contact has them (enforcement 'lagrange'): "
+                         "use 'gmres-gamg' or 'mumps'")
 
 
 def _unique(names: list[str], key: str) -> None:

@@ -1,0 +1,179 @@
+"""The geometric multigrid of ``linear_solver = "gmres-gmg"`` (condensation/multigrid.py):
+its prolongation interpolates linearly from the coarse mesh (constants everywhere, affine
+fields off the curved boundary, whose new nodes are moved onto the arc), a mesh that is not
+a refinement of the coarse one is refused, and the solve reaches condensed MUMPS's
+pressures, serially and on 2 ranks."""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from fenicsx_mortar import _dolfinx as dx
+from fenicsx_mortar import load_scene
+from fenicsx_mortar.condensation.multigrid import CoarseMesh, prolongations
+from fenicsx_mortar.scene.meshing import build_domain
+from fenicsx_mortar.scene.model import SceneError
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests"))
+
+
+def hertz(refine: int, solver: str = "gmres-gmg"):
+    """Coarse Hertz (B2) refined ``refine`` times, solved with ``solver``."""
+    scene = load_scene(ROOT / "demos/scenes/hertz.toml")
+    scene.mesh.params.update({"h_contact": 0.024, "h_far": 0.1, "refine": refine})
+    scene.solver.linear_solver = solver
+    scene.output.xdmf = scene.output.plots = False
+    return scene
+
+
+@pytest.fixture(scope="module")
+def refined_twice():
+    dom = build_domain(hertz(2), MPI.COMM_WORLD)
+    V = dx.vector_space(dom.mesh)
+    return dom, V
+
+
+def test_prolongation_interpolates_linearly(refined_twice):
+    """P_l u_c: constants exactly at every node; an affine field exactly at every node
+    farther than a coarse cell (h_far = 0.1) from the disk's arc. Nearer, gmsh moved the
+    new nodes onto the arc (and the centres of the cells along it by half that): P gives
+    the value at the chord's midpoint, off by |A| h²/(8R) at most."""
+    dom, V = refined_twice
+    assert len(dom.coarse_meshes) == 2
+    Ps = prolongations(V, dom.cell_tags, dom.coarse_meshes, np.zeros(0, dtype=np.int32))
+    grids = [dx.dof_coordinates(V)[: dx.owned_dof_count(V) // 2]] + \
+        [c.points for c in dom.coarse_meshes[::-1]]
+    A, b = np.array([[0.3, -1.2], [0.7, 0.4]]), np.array([0.5, -0.25])
+    for P, fine, coarse in zip(Ps, grids[:-1], grids[1:]):
+        uc = P.createVecRight()
+        assert uc.getSize() == 2 * len(coarse)
+        for field, exact_off_arc in ((lambda x: np.ones_like(x), False),
+                                     (lambda x: x @ A.T + b, True)):
+            uc.array[:] = field(coarse[slice(*np.array(uc.getOwnershipRange()) // 2)]).ravel()
+            uf = P.createVecLeft()
+            P.mult(uc, uf)
+            err = np.abs(uf.array.reshape(-1, 2) - field(fine)).max(axis=1)
+            on_arc = np.abs(np.hypot(fine[:, 0], fine[:, 1] - 1.0) - 1.0) < 0.1
+            keep = ~on_arc if exact_off_arc else np.ones(len(fine), dtype=bool)
+            assert err[keep].max() <= 1e-12
+            if exact_off_arc:
+                assert err[on_arc].max() <= np.abs(A).sum(axis=1).max() * 0.1 ** 2 / 8
+
+
+def test_a_mesh_not_refined_from_the_coarse_one_is_refused(refined_twice):
+    """Coarse meshes that the mesh was not refined from: one node per refinement point is
+    checked, so a shifted mesh or a missing body is named."""
+    dom, V = refined_twice
+    c = dom.coarse_meshes[-1]
+    shifted = CoarseMesh(c.points + [0.003, 0.0], c.cells, c.cell_body)
+    with pytest.raises(ValueError, match="not a uniform refinement"):
+        prolongations(V, dom.cell_tags, [shifted], np.zeros(0, dtype=np.int32))
+    one_body = CoarseMesh(c.points, c.cells[c.cell_body == c.cell_body[0]],
+                          c.cell_body[c.cell_body == c.cell_body[0]])
+    with pytest.raises(ValueError, match="bodies"):
+        prolongations(V, dom.cell_tags, [one_body], np.zeros(0, dtype=np.int32))
+    with pytest.raises(ValueError, match="not a uniform refinement"):
+        prolongations(V, dom.cell_tags, dom.coarse_meshes[:1], np.zeros(0, dtype=np.int32))
+
+
+def test_scene_without_a_hierarchy_is_refused():
+    from fenicsx_mortar.scene.validation import validate
+    with pytest.raises(SceneError, match="refine >= 1"):
+        validate(hertz(0))
+    scene = hertz(1)
+    scene.contacts[0].enforcement.type = "penalty"
+    with pytest.raises(SceneError, match="no contact has them"):
+        validate(scene)
+
+
+def pressures(scene):
+    from test_condensation import solved
+    res, kind = solved(scene)
+    assert kind == ("CondensedSystem", scene.solver.linear_solver)
+    return res.pairs[0].interface()["pressure"]
+
+
+def test_gmg_reaches_condensed_mumps_pressures():
+    """Hertz refined twice: GMRES + the geometric multigrid gives condensed MUMPS's nodal
+    pressures to 1e-8 of the peak."""
+    p_lu, p_mg = (pressures(hertz(2, s)) for s in ("condensed-mumps", "gmres-gmg"))
+    assert np.abs(p_lu - p_mg).max() <= 1e-8 * p_lu.max()
+
+
+MPI_SCRIPT = """
+import sys
+import numpy as np
+from mpi4py import MPI
+sys.path.insert(0, "tests")
+from test_multigrid import hertz, pressures
+p = pressures(hertz(2))
+if MPI.COMM_WORLD.rank == 0:
+    np.save(sys.argv[1], p)
+"""
+
+
+@pytest.mark.mpi
+def test_gmg_on_two_ranks_equals_serial(tmp_path):
+    """The hierarchy split among 2 ranks: the serial condensed MUMPS pressures to 1e-8."""
+    from conftest import run_python
+    out = tmp_path / "p.npy"
+    proc = run_python([sys.executable, "-c", MPI_SCRIPT, str(out)], ranks=2)
+    assert proc.returncode == 0, proc.stdout[-1000:] + proc.stderr[-3000:]
+    p_lu = pressures(hertz(2, "condensed-mumps"))
+    p_mg = np.load(out)
+    assert np.abs(p_lu - p_mg).max() <= 1e-8 * p_lu.max()
+
+
+def test_api_needs_the_hierarchy():
+    """ContactProblem's check of ``gmres-gmg``'s input: coarse meshes and cell tags, each
+    mesh well formed, multipliers to condense."""
+    from fenicsx_mortar.problem import _check_multigrid
+    from fenicsx_mortar.settings import SolverSettings
+    s = SolverSettings(linear_solver="gmres-gmg")
+    good = CoarseMesh(np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]), np.array([[0, 1, 2]]),
+                      np.array([1]))
+    with pytest.raises(ValueError, match="coarse_meshes"):
+        _check_multigrid(s, True, (), None)
+    with pytest.raises(ValueError, match="coarse_meshes"):
+        _check_multigrid(s, True, [good], None)
+    with pytest.raises(ValueError, match="without multipliers"):
+        _check_multigrid(s, False, [good], object())
+    bad = CoarseMesh(good.points, np.array([[0, 1, 3]]), good.cell_body)
+    with pytest.raises(ValueError, match=r"coarse_meshes\[0\]"):
+        _check_multigrid(s, True, [bad], object())
+    _check_multigrid(s, True, [good], object())
+    _check_multigrid(SolverSettings(linear_solver="gmres-gamg"), True, (), None)
+
+
+def test_a_pattern_growth_after_set_up_rebuilds_the_hierarchy(monkeypatch):
+    """Kc rebuilt with a larger pattern (large sliding) after the multigrid was set up: its
+    Galerkin products are made again, and the pressures stay condensed MUMPS's."""
+    from fenicsx_mortar.condensation.system import CondensedSystem
+    original = CondensedSystem.assemble_jacobian
+    grown = []
+
+    def assemble(self, A, add_contact):
+        pc = self.inner.getPC()
+        if not grown and pc.getType() == "mg" and self.inner.getIterationNumber() > 0:
+            # one slot the pattern lacks: the first owned row's coupling to the last dof
+            r0 = self.Kc.getOwnershipRange()[0]
+            free = np.setdiff1d(np.arange(r0, r0 + 8), self.skip_u)[:1]
+            far = np.setdiff1d(np.arange(self.n_global_u - 8, self.n_global_u),
+                               self.skip_u)[-1:]
+            missing = self._missing(free, far)
+            assert missing.all()
+            self._grow(free, far)
+            grown.append(pc.getMGLevels())
+        original(self, A, add_contact)
+
+    monkeypatch.setattr(CondensedSystem, "assemble_jacobian", assemble)
+    p_mg = pressures(hertz(2))
+    assert grown == [3]
+    monkeypatch.setattr(CondensedSystem, "assemble_jacobian", original)
+    p_lu = pressures(hertz(2, "condensed-mumps"))
+    assert np.abs(p_lu - p_mg).max() <= 1e-8 * p_lu.max()
