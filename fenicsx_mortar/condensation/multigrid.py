@@ -133,21 +133,17 @@ def prolongation(fine_points: np.ndarray, fine_body: np.ndarray, fine_rows: np.n
             raise ValueError(f"{where}is not a uniform refinement of the coarse mesh: "
                              f"{int((total == 0).sum())} of body {b}'s refinement points "
                              f"have no node, {int((total > 1).sum())} have several")
-    rows = np.repeat(2 * fine_rows.astype(np.int64), 4)[:, None] + np.arange(2)
-    cols = 2 * parent.reshape(-1)[:, None] + np.arange(2)
-    vals = np.repeat(weight.reshape(-1), 2).reshape(-1, 2)
-    keep = (vals != 0.0)
+    # rows node-major (x, y), each node's parents in ascending order: CSR without a sort
+    order = np.argsort(parent, axis=1)
+    parent = np.take_along_axis(parent, order, axis=1)
+    weight = np.take_along_axis(weight, order, axis=1)
+    cols = (2 * parent[:, None, :] + np.arange(2)[None, :, None]).reshape(2 * n, 4)
+    vals = np.broadcast_to(weight[:, None, :], (n, 2, 4)).reshape(2 * n, 4)
+    keep = vals != 0.0
     if fixed is not None and len(fixed):
-        local = np.zeros((n, 2), dtype=bool)
-        local.reshape(-1)[fixed] = True
-        keep &= ~np.repeat(local, 4, axis=0)
-    rows, cols, vals = rows[keep], cols[keep], vals[keep]
-    order = np.lexsort((cols, rows))
-    rows, cols, vals = rows[order], cols[order], vals[order]
-    r0 = 2 * int(fine_rows[0]) if n else 0
-    indptr = np.zeros(2 * n + 1, dtype=np.int64)
-    np.add.at(indptr, rows - r0 + 1, 1)
-    indptr = np.cumsum(indptr)
+        keep[fixed] = False
+    indptr = np.concatenate([[0], np.cumsum(keep.sum(axis=1))])
+    cols, vals = cols[keep], vals[keep]
     c0, c1 = _split(len(coarse.points), comm)
     P = PETSc.Mat().createAIJ(((2 * n, 2 * n_fine), (2 * (c1 - c0), 2 * len(coarse.points))),
                               csr=(indptr.astype(PETSc.IntType), cols.astype(PETSc.IntType),
