@@ -93,7 +93,8 @@ class ContactProblem:
         _check_forms(F, J, u)
         _check_pairs(pairs, u)
         settings = resolve_linear_solver((settings or SolverSettings()).check("settings"),
-                                         pairs, dx.dof_count(u.function_space))
+                                         pairs, dx.dof_count(u.function_space),
+                                         len(coarse_meshes) if cell_tags is not None else 0)
         check_number("max_augmentations", max_augmentations)
         if not isinstance(petsc_options_prefix, str) or " " in petsc_options_prefix \
                 or petsc_options_prefix.startswith("-"):
@@ -130,7 +131,7 @@ class ContactProblem:
         #: the Newton driver (newton.py): SNES callbacks, convergence rule, state
         prolongations = []
         if settings.linear_solver == "gmres-gmg":
-            with self.timings("contact"):
+            with self.timings("multigrid"):
                 prolongations = multigrid.prolongations(u.function_space, cell_tags,
                                                         coarse_meshes, dx.bc_dofs(self.bcs))
         self.newton = NewtonSolver(self.residual, self.jacobian, u, self.bcs, settings,

@@ -105,8 +105,9 @@ class SolverSettings:
             PETSc's ``l2`` step), or a PETSc line search (``"basic"``, ``"bt"``, ``"l2"``,
             ``"cp"``).
         linear_solver: ``"auto"`` (default: ``"gmres-gamg"`` from
-            :data:`~.system.AUTO_AMG_DOFS` displacement dofs with dual multipliers, else
-            ``"mumps"``), ``"mumps"``, ``"superlu_dist"``, ``"condensed-mumps"``,
+            :data:`~.system.AUTO_AMG_DOFS` displacement dofs with dual multipliers —
+            ``"gmres-gmg"`` on a mesh refined twice or more from given coarse meshes —,
+            else ``"mumps"``), ``"mumps"``, ``"superlu_dist"``, ``"condensed-mumps"``,
             ``"gmres-gamg"``, ``"gmres-hypre"`` or ``"gmres-gmg"`` (LINEAR_SOLVERS; with
             multipliers the last four condense the dual ones, docs/condensation.md;
             ``"gmres-gmg"`` needs the coarse meshes, ContactProblem's ``coarse_meshes``).

@@ -262,15 +262,24 @@ def near_nullspace(V) -> PETSc.NullSpace:
 AUTO_AMG_DOFS = 200_000
 
 
-def resolve_linear_solver(settings, pairs, n_dofs: int):
-    """``settings`` with ``linear_solver = "auto"`` made a solver: ``"gmres-gamg"`` for a
-    problem of at least :data:`AUTO_AMG_DOFS` displacement dofs whose multiplier pairs all
-    condense (the dual basis), else ``"mumps"``.
+#: coarse meshes from which ``"auto"`` takes the geometric multigrid over GAMG: with one
+#: (a quarter of the dofs for MUMPS at the bottom) it was as fast at 0.5M, with two 1.4x
+#: faster at 2M (docs/performance.md §7)
+AUTO_GMG_LEVELS = 2
+
+
+def resolve_linear_solver(settings, pairs, n_dofs: int, coarse_meshes: int = 0):
+    """``settings`` with ``linear_solver = "auto"`` made a solver: for a problem of at
+    least :data:`AUTO_AMG_DOFS` displacement dofs whose multiplier pairs all condense (the
+    dual basis), ``"gmres-gmg"`` with at least :data:`AUTO_GMG_LEVELS` coarse meshes, else
+    ``"gmres-gamg"``; below that size ``"mumps"``.
 
     Args:
         settings: The SolverSettings.
         pairs: The contact pairs.
         n_dofs: The global number of displacement dofs.
+        coarse_meshes: How many meshes the problem's mesh was refined from (given to it
+            with the cell tags).
 
     Returns:
         The settings, replaced if ``"auto"``.
@@ -278,8 +287,10 @@ def resolve_linear_solver(settings, pairs, n_dofs: int):
     if settings.linear_solver != "auto":
         return settings
     from .condensation import condensable
-    amg = n_dofs >= AUTO_AMG_DOFS and condensable(pairs)   # (condensable: has multipliers)
-    return dataclasses.replace(settings, linear_solver="gmres-gamg" if amg else "mumps")
+    if not (n_dofs >= AUTO_AMG_DOFS and condensable(pairs)):   # (condensable: multipliers)
+        return dataclasses.replace(settings, linear_solver="mumps")
+    gmg = coarse_meshes >= AUTO_GMG_LEVELS
+    return dataclasses.replace(settings, linear_solver="gmres-gmg" if gmg else "gmres-gamg")
 
 
 def system_class(pairs, linear_solver: str):

@@ -177,3 +177,17 @@ def test_a_pattern_growth_after_set_up_rebuilds_the_hierarchy(monkeypatch):
     monkeypatch.setattr(CondensedSystem, "assemble_jacobian", original)
     p_lu = pressures(hertz(2, "condensed-mumps"))
     assert np.abs(p_lu - p_mg).max() <= 1e-8 * p_lu.max()
+
+
+def test_auto_takes_the_geometric_multigrid_on_a_twice_refined_mesh(monkeypatch):
+    """``"auto"`` above AUTO_AMG_DOFS: the geometric multigrid with two coarse meshes (and
+    condensed MUMPS's pressures), GAMG with one."""
+    from fenicsx_mortar import system
+    from test_condensation import solved
+    monkeypatch.setattr(system, "AUTO_AMG_DOFS", 0)
+    (res, kind), (_, kind1) = (solved(hertz(k, "auto")) for k in (2, 1))
+    assert kind == ("CondensedSystem", "gmres-gmg")
+    assert kind1 == ("CondensedSystem", "gmres-gamg")
+    p_lu = pressures(hertz(2, "condensed-mumps"))
+    p = res.pairs[0].interface()["pressure"]
+    assert np.abs(p_lu - p).max() <= 1e-8 * p_lu.max()
