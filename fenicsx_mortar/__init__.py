@@ -21,13 +21,14 @@ from .settings import RANGES, SolverSettings
 _LAZY = {"ContactPair": "contact.pair", "ContactProblem": "problem",
          "LoadStepper": "stepping", "SteppingResult": "stepping", "StepDone": "stepping",
          "StepStarted": "stepping", "Retried": "stepping", "Cut": "stepping",
-         "StepResult": "newton", "Timings": "timings"}
+         "StepResult": "newton", "Timings": "timings",
+         "CoarseMesh": "condensation.multigrid", "refine_gmsh": "condensation.multigrid"}
 
-__all__ = ["Body", "Contact", "ContactPair", "ContactProblem", "Cut", "Dirichlet",
+__all__ = ["Body", "CoarseMesh", "Contact", "ContactPair", "ContactProblem", "Cut", "Dirichlet",
            "Enforcement", "Friction", "LoadCurve", "LoadStepper", "Material", "MeshSource",
            "OutputSettings", "Pressure", "RANGES", "Retried", "RigidMotion", "Scene",
            "SceneError", "SolverSettings", "StepDone", "StepResult", "StepStarted",
-           "SteppingResult", "Steps", "Timings", "Traction", "load_scene", "solve"]
+           "SteppingResult", "Steps", "Timings", "Traction", "load_scene", "refine_gmsh", "solve"]
 
 
 def solve(scene: Scene, out: str | None = None, **kwargs):

@@ -29,31 +29,3 @@ def generate(model, cell: str) -> None:
     if not is_all(model, cell):
         raise RuntimeError(f"mesh is not all {cell}: {model.mesh.getElementTypes(2)}")
 
-
-def refine(model, times: int) -> list:
-    """Refine the 2D mesh ``times`` times (every cell split into four); return the meshes
-    before each refinement, coarsest first, as a geometric multigrid's hierarchy
-    (:class:`~fenicsx_mortar.condensation.multigrid.CoarseMesh`: the cells of the
-    physical surface groups, tagged with their group's tag, as DOLFINx tags them)."""
-    import numpy as np
-
-    from ..condensation.multigrid import CoarseMesh
-    levels = []
-    for _ in range(times):
-        tags, xyz, _ = model.mesh.getNodes()
-        index = np.zeros(int(tags.max()) + 1, dtype=np.int64)
-        index[tags.astype(np.int64)] = np.arange(len(tags))
-        cells, body = [], []
-        for dim, tag in model.getPhysicalGroups(2):
-            for entity in model.getEntitiesForPhysicalGroup(dim, tag):
-                for etype, _, nodes in zip(*model.mesh.getElements(2, entity)):
-                    k = model.mesh.getElementProperties(etype)[3]
-                    c = index[np.asarray(nodes, dtype=np.int64)].reshape(-1, k)
-                    cells.append(c)
-                    body.append(np.full(len(c), tag, dtype=np.int32))
-        cells = np.vstack(cells)
-        used, cells = np.unique(cells, return_inverse=True)
-        levels.append(CoarseMesh(xyz.reshape(-1, 3)[used, :2].copy(),
-                                 cells.reshape(-1, k).astype(np.int64), np.concatenate(body)))
-        model.mesh.refine()
-    return levels

@@ -103,7 +103,8 @@ def build(model, *, cell: str = "quadrilateral", h_contact: float = 0.05, h_far:
     for attempt in range(4):
         model.mesh.generate(2)
         if _gmsh.is_all(model, cell):
-            return _gmsh.refine(model, refine)
+            from ..condensation.multigrid import refine_gmsh   # (petsc4py: when meshing)
+            return refine_gmsh(model, refine)
         model.mesh.clear()
         shrink = 1.0 - 1e-3 * (attempt + 1)
         field.setNumber(threshold, "SizeMin", h_contact * shrink)

@@ -186,3 +186,38 @@ def prolongations(V, cell_tags, coarse_meshes, fixed_dofs: np.ndarray) -> list[P
         fine = (coarse.points[c0:c1], coarse.node_body()[c0:c1], np.arange(c0, c1),
                 len(coarse.points), None, f"coarse mesh {level} ")
     return out
+
+
+def refine_gmsh(model, times: int) -> list[CoarseMesh]:
+    """Refine a gmsh model's 2D mesh ``times`` times (every cell split into four, gmsh's
+    ``model.mesh.refine``), keeping the meshes before each refinement: the hierarchy of
+    ``coarse_meshes``.
+
+    Args:
+        model: The gmsh model (``gmsh.model``), meshed in 2D with first-order cells in
+            physical surface groups (the bodies).
+        times: How many refinements.
+
+    Returns:
+        The meshes before each refinement, coarsest first: the cells of the physical
+        surface groups, each tagged with its group's tag (as DOLFINx's gmsh reader tags
+        them).
+    """
+    levels = []
+    for _ in range(times):
+        tags, xyz, _ = model.mesh.getNodes()
+        index = np.zeros(int(tags.max()) + 1, dtype=np.int64)
+        index[tags.astype(np.int64)] = np.arange(len(tags))
+        cells, body = [], []
+        for dim, tag in model.getPhysicalGroups(2):
+            for entity in model.getEntitiesForPhysicalGroup(dim, tag):
+                for etype, _, nodes in zip(*model.mesh.getElements(2, entity)):
+                    k = model.mesh.getElementProperties(etype)[3]
+                    cells.append(index[np.asarray(nodes, dtype=np.int64)].reshape(-1, k))
+                    body.append(np.full(len(cells[-1]), tag, dtype=np.int32))
+        used, inverse = np.unique(np.vstack(cells), return_inverse=True)
+        levels.append(CoarseMesh(xyz.reshape(-1, 3)[used, :2].copy(),
+                                 inverse.reshape(-1, cells[0].shape[1]).astype(np.int64),
+                                 np.concatenate(body)))
+        model.mesh.refine()
+    return levels
