@@ -79,16 +79,16 @@ def _candidates(coarse: CoarseMesh, body: int):
     return np.vstack(points), np.vstack(parents), np.vstack(weights), np.concatenate(reach)
 
 
-def prolongation(fine_points: np.ndarray, fine_body: np.ndarray, fine_rows: np.ndarray,
+def prolongation(fine_points: np.ndarray, fine_body: np.ndarray,
                  coarse: CoarseMesh, n_fine: int, comm: MPI.Comm,
                  fixed: np.ndarray | None = None, where: str = "") -> PETSc.Mat:
     """The prolongation from ``coarse`` to the mesh refined from it, for 2D displacements
     (two dofs a node, node-major).
 
     Args:
-        fine_points: (n, 2) coordinates of this rank's fine nodes.
+        fine_points: (n, 2) coordinates of this rank's fine nodes (its contiguous range
+            of the global numbering, in order).
         fine_body: (n,) their bodies.
-        fine_rows: (n,) their global node numbers (this rank's contiguous range).
         coarse: The coarse mesh (whole, on every rank).
         n_fine: The global number of fine nodes.
         comm: The communicator.
@@ -174,17 +174,17 @@ def prolongations(V, cell_tags, coarse_meshes, fixed_dofs: np.ndarray) -> list[P
     dofs = dx.cell_dofs(V)
     for k in range(dofs.shape[1]):
         body[dofs[cell_tags.indices, k]] = cell_tags.values
-    rows = dx.local_to_global_blocks(V)[:n_own]
     fixed = np.asarray(fixed_dofs, dtype=np.int64)
     fixed = fixed[fixed < 2 * n_own]
     out = []
-    fine = (points, body[:n_own], rows, dx.dof_count(V) // 2, fixed, "the problem's mesh ")
+    fine = (points, body[:n_own], dx.dof_count(V) // 2, fixed, "the problem's mesh ")
     for level in range(len(coarse_meshes) - 1, -1, -1):
         coarse = coarse_meshes[level]
-        out.append(prolongation(*fine[:3], coarse, fine[3], comm, fixed=fine[4], where=fine[5]))
+        x, b, n_fine, fix, where = fine
+        out.append(prolongation(x, b, coarse, n_fine, comm, fixed=fix, where=where))
         c0, c1 = _split(len(coarse.points), comm)
-        fine = (coarse.points[c0:c1], coarse.node_body()[c0:c1], np.arange(c0, c1),
-                len(coarse.points), None, f"coarse mesh {level} ")
+        fine = (coarse.points[c0:c1], coarse.node_body()[c0:c1], len(coarse.points), None,
+                f"coarse mesh {level} ")
     return out
 
 
