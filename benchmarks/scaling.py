@@ -18,8 +18,9 @@ iterations, assembly_s = one bulk Jacobian assembly, timed after the solve, the 
 rank; peak_mib = the largest peak resident memory of a rank; total_s = the process from
 its start, meshing included, to the end of the solve.) ``--all`` runs every configuration
 not stored yet, one at a time; ``--report`` prints the table, writes it into
-docs/performance.md if that has the ``scaling`` markers (it has none yet) and draws
-docs/scaling.png (time per Newton iteration against dofs; not drawn yet).
+docs/performance.md between its ``scaling`` markers (keeping the rows there whose
+configuration has no record in ``--work``: measured earlier, elsewhere) and draws
+docs/scaling.png (time per Newton iteration against dofs).
 
 Solvers: ``mumps`` the saddle point [u, λ] with MUMPS (the default), ``condensed-mumps``
 the condensed displacement system with MUMPS, ``amg`` the condensed system with GMRES and
@@ -242,7 +243,8 @@ def pressure_difference(r: dict, runs: list[dict]) -> tuple[float, str] | None:
     and ranks (else the condensed MUMPS one), relative to the peak pressure."""
     import numpy as np
     for ref_solver in ("mumps", "condensed-mumps"):
-        ref = [q for q in runs if q["case"] == r["case"] and q["dofs"] == r["dofs"]
+        ref = [q for q in runs if "path" in q and q["case"] == r["case"]
+               and q["dofs"] == r["dofs"]
                and q["solver"] == ref_solver and q["ranks"] == r["ranks"]]
         if ref and ref[0]["path"] != r["path"]:
             a = np.load(r["path"].with_suffix(".npz"))["pressure"]
@@ -265,6 +267,9 @@ def table(runs: list[dict]) -> str:
     lines = [head, "|" + "---|" * 15]
     for r in sorted(runs, key=lambda q: (q["case"], q["dofs"], q["ranks"],
                                          SOLVERS.index(q["solver"]))):
+        if "row" in r:
+            lines.append(r["row"])
+            continue
         n = max(r["newton"], 1)
         w, c = r["per_rank"][0]["wall"], r["per_rank"][0]["cpu"]
         its = r["linear_its"]
@@ -312,14 +317,43 @@ def plot(runs: list[dict], path: Path) -> None:
     fig.savefig(path, dpi=120)
 
 
+def row_key(row: str) -> tuple:
+    """(case, dofs, solver, N) of a table row."""
+    cells = [c.strip() for c in row.strip().strip("|").split("|")]
+    return cells[0], int(cells[1].replace(",", "")), cells[2].split(" (")[0], int(cells[3])
+
+
+def kept_rows(doc_text: str, runs: list[dict]) -> list[dict]:
+    """The rows of the table in ``doc_text`` whose configuration has no record in ``runs``
+    (measured on another machine or day, their records not here), as records with the
+    fields the table and the plot read."""
+    if TABLE_BEGIN not in doc_text:
+        return []
+    body = doc_text.split(TABLE_BEGIN, 1)[1].split(TABLE_END, 1)[0]
+    have = {(r["case"], r["dofs"], r["solver"], r["ranks"]) for r in runs}
+    out = []
+    for row in body.strip().splitlines()[2:]:
+        case, dofs, solver, ranks = key = row_key(row)
+        if key in have:
+            continue
+        cells = [c.strip() for c in row.strip().strip("|").split("|")]
+        out.append({"case": case, "dofs": dofs, "solver": solver, "ranks": ranks,
+                    "s_per_newton": float(cells[6]), "assembly_s": float(cells[9]),
+                    "row": row})
+    return out
+
+
 def report(work: Path) -> None:
+    """The table of the records in ``work`` and of the rows already in
+    docs/performance.md that no record replaces, written there; docs/scaling.png."""
+    doc = ROOT / "docs/performance.md"
+    content = doc.read_text()
     runs = load(work)
     if not runs:
         raise SystemExit(f"scaling: no records in {work}")
+    runs += kept_rows(content, runs)
     text = table(runs)
     print(text)
-    doc = ROOT / "docs/performance.md"
-    content = doc.read_text()
     if TABLE_BEGIN in content and TABLE_END in content:
         head, rest = content.split(TABLE_BEGIN, 1)
         _, tail = rest.split(TABLE_END, 1)

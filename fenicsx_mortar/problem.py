@@ -125,7 +125,8 @@ class ContactProblem:
         self._shared_bc_dofs: bool | None = None
         matrix = None
         if self.pairs:
-            with self.timings("contact"):
+            # set-up, once (part of the runner's jit), not a Newton iteration's contact work
+            with self.timings("contact_setup"):
                 blocks = [b for p in self.pairs for b in p.couplings()]
                 matrix = dx.matrix_with_couplings(self.jacobian, u.function_space, blocks)
         #: the Newton driver (newton.py): SNES callbacks, convergence rule, state
