@@ -318,15 +318,29 @@ def plot(runs: list[dict], path: Path) -> None:
 
 
 def row_key(row: str) -> tuple:
-    """(case, dofs, solver, N) of a table row."""
+    """The configuration of a table row.
+
+    Args:
+        row: A row of the table (markdown).
+
+    Returns:
+        (case, dofs, solver, N).
+    """
     cells = [c.strip() for c in row.strip().strip("|").split("|")]
     return cells[0], int(cells[1].replace(",", "")), cells[2].split(" (")[0], int(cells[3])
 
 
 def kept_rows(doc_text: str, runs: list[dict]) -> list[dict]:
     """The rows of the table in ``doc_text`` whose configuration has no record in ``runs``
-    (measured on another machine or day, their records not here), as records with the
-    fields the table and the plot read."""
+    (measured on another machine or day, their records not here).
+
+    Args:
+        doc_text: docs/performance.md's text.
+        runs: The records at hand.
+
+    Returns:
+        The rows as records with the fields the table and the plot read (and ``row``).
+    """
     if TABLE_BEGIN not in doc_text:
         return []
     body = doc_text.split(TABLE_BEGIN, 1)[1].split(TABLE_END, 1)[0]

@@ -102,7 +102,8 @@ def linear_solver_options(name: str, condensed: bool = False) -> dict[str, str]:
     Returns:
         Options without the prefix.
     """
-    if name in _AMG and condensed:
+    if name in _AMG and (condensed or name == "gmres-gmg"):
+        # (gmres-gmg has no other path: without condensation its options are only probed)
         return {**_KRYLOV, **_AMG[name]}
     if name == "gmres-hypre":
         return {"ksp_type": "gmres", "pc_type": "hypre", "ksp_rtol": "1e-12"}
@@ -296,7 +297,9 @@ def _probe(settings: SolverSettings, user: Mapping[str, str]) -> list[str]:
         opts[prefix + k] = v
     # a multigrid makes (and configures) its levels only for a matrix large enough to
     # coarsen: a 1D Laplacian then, else the 2 x 2 identity
-    n = 1000 if any(k.startswith(("mg_levels_", "mg_coarse_")) for k in user) else 2
+    n = 1000 if any(k.startswith(("mg_levels_", "mg_coarse_")) for k in user) \
+        or options.get("pc_type") == "mg" else 2
+    P = None
     A = PETSc.Mat().createAIJ([n, n], nnz=3, comm=PETSc.COMM_SELF)
     snes = PETSc.SNES().create(PETSc.COMM_SELF)
     try:
@@ -311,8 +314,9 @@ def _probe(settings: SolverSettings, user: Mapping[str, str]) -> list[str]:
         snes.setFunction(lambda s, x, f: x.copy(f), A.createVecLeft())
         snes.setJacobian(lambda s, x, J, P: None, A)
         snes.setFromOptions()
+        P = _two_levels(snes.getKSP().getPC(), n)
         snes.getKSP().setFromOptions()
-        if any(k.startswith(FACTOR_OPTIONS) for k in user):
+        if P is not None or any(k.startswith(FACTOR_OPTIONS) for k in user):
             # read at the first factorization or multigrid set-up
             snes.getKSP().setOperators(A)
             snes.getKSP().setUp()
@@ -331,6 +335,28 @@ def _probe(settings: SolverSettings, user: Mapping[str, str]) -> list[str]:
             opts.delValue(prefix + k)
         snes.destroy()
         A.destroy()
+        if P is not None:
+            P.destroy()
+
+
+def _two_levels(pc: PETSc.PC, n: int) -> PETSc.Mat | None:
+    """A geometric multigrid probed gets two levels (linear interpolation from n/2 points
+    to n), as the condensed system gives it its prolongations: its level and coarse
+    options are read only then. Returns the interpolation (None: not a multigrid)."""
+    if pc.getType() != PETSc.PC.Type.MG or n < 4:
+        return None
+    m = n // 2
+    P = PETSc.Mat().createAIJ([n, m], nnz=2, comm=PETSc.COMM_SELF)
+    P.setUp()
+    for j in range(m):
+        P.setValue(2 * j, j, 1.0)
+        P.setValue(2 * j + 1, j, 0.5)
+        if j + 1 < m:
+            P.setValue(2 * j + 1, j + 1, 0.5)
+    P.assemble()
+    pc.setMGLevels(2)
+    pc.setMGInterpolation(1, P)
+    return P
 
 
 def unread(settings: SolverSettings, user: Mapping[str, str],

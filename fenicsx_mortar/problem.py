@@ -65,7 +65,9 @@ class ContactProblem:
         acceptance: Run the physical checks of a converged state (passed-through nodes,
             inverted cells, a flown-off body). The convergence rule always applies.
         max_augmentations: Newton solves after the first per ``solve()`` (ALM updates).
-        cell_tags: Optional cell meshtags, to name bodies in messages.
+        cell_tags: Optional cell meshtags: the bodies, named in messages; with
+            ``coarse_meshes``, the bodies of the geometric multigrid (without them
+            ``"auto"`` does not take it).
         body_names: Optional names of the cell tag values.
         timings: Seconds by phase (a :class:`~fenicsx_mortar.timings.Timings`), added to.
         should_stop: Called at every Newton iteration; a non-empty string (a signal's name)
@@ -90,6 +92,8 @@ class ContactProblem:
                  should_stop: Callable[[], str | None] | None = None,
                  coarse_meshes: Sequence[CoarseMesh] = ()):
         pairs = list(pairs)
+        coarse_meshes = _as_tuple(coarse_meshes, "coarse_meshes",
+                                  "a sequence of CoarseMesh, coarsest first")
         _check_forms(F, J, u)
         _check_pairs(pairs, u)
         settings = resolve_linear_solver((settings or SolverSettings()).check("settings"),
@@ -116,6 +120,12 @@ class ContactProblem:
         self.u, self.bcs, self.pairs = u, list(bcs), pairs
         self.max_augmentations = int(max_augmentations)
         self.timings = timings if timings is not None else Timings()
+        # before the pairs are claimed: a hierarchy that does not fit fails here
+        prolongations = []
+        if settings.linear_solver == "gmres-gmg":
+            with self.timings("multigrid"):
+                prolongations = multigrid.prolongations(u.function_space, cell_tags,
+                                                        coarse_meshes, dx.bc_dofs(self.bcs))
         for p in self.pairs:
             p.timings = self.timings
             p._problem = weakref.ref(self)
@@ -130,11 +140,6 @@ class ContactProblem:
                 blocks = [b for p in self.pairs for b in p.couplings()]
                 matrix = dx.matrix_with_couplings(self.jacobian, u.function_space, blocks)
         #: the Newton driver (newton.py): SNES callbacks, convergence rule, state
-        prolongations = []
-        if settings.linear_solver == "gmres-gmg":
-            with self.timings("multigrid"):
-                prolongations = multigrid.prolongations(u.function_space, cell_tags,
-                                                        coarse_meshes, dx.bc_dofs(self.bcs))
         self.newton = NewtonSolver(self.residual, self.jacobian, u, self.bcs, settings,
                                    self.pairs, self.timings, matrix,
                                    should_stop or (lambda: None), petsc_options_prefix,
@@ -327,6 +332,18 @@ def _check_multigrid(settings: SolverSettings, multipliers: bool, coarse_meshes,
         if not ok:
             raise ValueError(f"coarse_meshes[{i}]: points (n, 2) finite, cells (m, 3 or 4) "
                              "node indices below n, cell_body (m,)")
+        unused = len(p) - len(np.unique(cells))
+        if unused:
+            raise ValueError(f"coarse_meshes[{i}]: {unused} of its points are in no cell "
+                             "(a coarse node without a cell has no equation): remove them")
+
+
+def _as_tuple(value, key: str, what: str) -> tuple:
+    """``value`` (None: empty) as a tuple, or a ValueError naming ``key``."""
+    try:
+        return tuple(value) if value is not None else ()
+    except TypeError:
+        raise ValueError(f"{key}: {what}, not {type(value).__name__}") from None
 
 
 def _check_pairs(pairs: list, u) -> None:

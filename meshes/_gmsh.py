@@ -28,4 +28,3 @@ def generate(model, cell: str) -> None:
     model.mesh.generate(2)
     if not is_all(model, cell):
         raise RuntimeError(f"mesh is not all {cell}: {model.mesh.getElementTypes(2)}")
-

@@ -149,12 +149,50 @@ def test_api_needs_the_hierarchy():
     with pytest.raises(ValueError, match=r"coarse_meshes\[0\]"):
         _check_multigrid(s, True, [bad], object())
     _check_multigrid(s, True, [good], object())
+    stray = CoarseMesh(np.vstack([good.points, [[5.0, 5.0]]]), good.cells, good.cell_body)
+    with pytest.raises(ValueError, match=r"coarse_meshes\[0\]: 1 of its points are in no cell"):
+        _check_multigrid(s, True, [stray], object())
     _check_multigrid(SolverSettings(linear_solver="gmres-gamg"), True, (), None)
 
 
-def test_a_pattern_growth_after_set_up_rebuilds_the_hierarchy(monkeypatch):
-    """Kc rebuilt with a larger pattern (large sliding) after the multigrid was set up: its
-    Galerkin products are made again, and the pressures stay condensed MUMPS's."""
+def test_a_hierarchy_that_does_not_fit_leaves_the_pairs_free():
+    """Coarse meshes given finest first: ContactProblem names coarse_meshes and says what
+    they must be, before it claims the pairs: the same pairs then serve a problem with
+    the hierarchy in order, whose multigrid has a level per mesh."""
+    import fenicsx_mortar as fm
+    from fenicsx_mortar.scene.bulk import build_bulk
+    from fenicsx_mortar.scene.runner import scene_pairs
+    scene = hertz(2)
+    dom = build_domain(scene, MPI.COMM_WORLD)
+    bulk = build_bulk(scene, dom)
+    pairs = scene_pairs(scene, dom, bulk.V)
+    args = (bulk.residual, bulk.u, bulk.bcs, pairs, bulk.jacobian)
+    kw = {"settings": scene.solver, "cell_tags": dom.cell_tags}
+    # (the traceback kept: it holds the failed problem, as a notebook's would)
+    with pytest.raises(ValueError, match=r"coarse_meshes\[\d\].*coarsest first") as failed:
+        fm.ContactProblem(*args, coarse_meshes=dom.coarse_meshes[::-1], **kw)
+    with fm.ContactProblem(*args, coarse_meshes=dom.coarse_meshes, **kw) as problem:
+        assert problem.newton.system.inner.getPC().getMGLevels() == 3
+    assert failed.traceback
+
+
+def test_the_multigrid_reads_its_level_options():
+    """``gmres-gmg``'s level, coarse and Krylov options are read (a scene's solver.petsc
+    takes them), a misspelt one is reported."""
+    from fenicsx_mortar import petsc_options as po
+    from fenicsx_mortar.settings import SolverSettings
+    s = SolverSettings(linear_solver="gmres-gmg")
+    read = {"mg_levels_ksp_max_it": "2", "mg_coarse_mat_mumps_icntl_14": "50",
+            "ksp_rtol": "1e-6", "ksp_gmres_restart": "30"}
+    assert po.unread(s, read) == []
+    assert po.unread(s, {"mg_levels_ksp_maxit": "2"}) == ["mg_levels_ksp_maxit"]
+
+
+def test_a_pattern_growth_after_set_up_keeps_the_multigrid_working(monkeypatch):
+    """Kc rebuilt with a larger pattern (large sliding) after the multigrid was set up: the
+    next set-up takes the new pattern and the pressures stay condensed MUMPS's. (The slot
+    added is zero: what is checked is that the solve goes on, not the coarse operators'
+    values.)"""
     from fenicsx_mortar.condensation.system import CondensedSystem
     original = CondensedSystem.assemble_jacobian
     grown = []
@@ -193,3 +231,35 @@ def test_auto_takes_the_geometric_multigrid_on_a_twice_refined_mesh(monkeypatch)
     p_lu = pressures(hertz(2, "condensed-mumps"))
     p = res.pairs[0].interface()["pressure"]
     assert np.abs(p_lu - p).max() <= 1e-8 * p_lu.max()
+
+
+def test_refine_gmsh_refuses_what_it_cannot_describe():
+    """A negative count, and a mesh without physical surface groups (no bodies), are
+    refused by name; a square of 2 x 2 quadrilaterals refined once keeps the 9 nodes and
+    4 cells before the refinement."""
+    import gmsh
+
+    import fenicsx_mortar as fm
+    from fenicsx_mortar.scene.meshing import _gmsh_initialize
+    _gmsh_initialize(gmsh)  # (our signal handlers kept)
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.model.add("square")
+        s = gmsh.model.occ.addRectangle(0, 0, 0, 1, 1)
+        gmsh.model.occ.synchronize()
+        for c in gmsh.model.getEntities(1):
+            gmsh.model.mesh.setTransfiniteCurve(c[1], 3)
+        gmsh.model.mesh.setTransfiniteSurface(s)
+        gmsh.model.mesh.setRecombine(2, s)
+        gmsh.model.mesh.generate(2)
+        with pytest.raises(ValueError, match="times = -1"):
+            fm.refine_gmsh(gmsh.model, -1)
+        with pytest.raises(ValueError, match="physical surface groups"):
+            fm.refine_gmsh(gmsh.model, 1)
+        gmsh.model.addPhysicalGroup(2, [s], 7)
+        (coarse,) = fm.refine_gmsh(gmsh.model, 1)
+        assert (len(coarse.points), coarse.cells.shape) == (9, (4, 4))
+        assert set(coarse.cell_body) == {7}
+        assert len(gmsh.model.mesh.getNodes()[0]) == 25
+    finally:
+        gmsh.finalize()

@@ -24,7 +24,7 @@ from scipy.spatial import cKDTree
 from .. import _dolfinx as dx
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)  # (arrays: no elementwise ==, no hash)
 class CoarseMesh:
     """One mesh of a refinement hierarchy, coarser than the problem's.
 
@@ -79,9 +79,16 @@ def _candidates(coarse: CoarseMesh, body: int):
     return np.vstack(points), np.vstack(parents), np.vstack(weights), np.concatenate(reach)
 
 
+#: what a hierarchy that does not fit is told to check
+HINT = ("coarse_meshes are the meshes before each uniform refinement (every cell into "
+        "four), coarsest first, with cell_body the values of cell_tags and a quadrilateral's "
+        "nodes in order around it; without such a hierarchy use 'gmres-gamg'")
+
+
 def prolongation(fine_points: np.ndarray, fine_body: np.ndarray,
                  coarse: CoarseMesh, n_fine: int, comm: MPI.Comm,
-                 fixed: np.ndarray | None = None, where: str = "") -> PETSc.Mat:
+                 fixed: np.ndarray | None = None, where: str = "the fine mesh",
+                 coarse_name: str = "the coarse mesh") -> PETSc.Mat:
     """The prolongation from ``coarse`` to the mesh refined from it, for 2D displacements
     (two dofs a node, node-major).
 
@@ -94,6 +101,7 @@ def prolongation(fine_points: np.ndarray, fine_body: np.ndarray,
         comm: The communicator.
         fixed: Local fine dofs (2 node + component) whose rows stay zero: Dirichlet dofs.
         where: How the error names the fine mesh.
+        coarse_name: How it names ``coarse``.
 
     Returns:
         The (2 n_fine, 2 n_coarse) AIJ matrix; columns split as :func:`_split`.
@@ -107,8 +115,9 @@ def prolongation(fine_points: np.ndarray, fine_body: np.ndarray,
     bodies = np.unique(coarse.cell_body)
     bad = np.setdiff1d(np.concatenate(comm.allgather(np.unique(fine_body))), bodies)
     if len(bad):
-        raise ValueError(f"{where}is not a uniform refinement of the coarse mesh: it has "
-                         f"bodies {bad.tolist()}, the coarse mesh not")
+        raise ValueError(f"{where} is not a uniform refinement of {coarse_name}: it has "
+                         f"bodies {bad.tolist()}, {coarse_name} has "
+                         f"{bodies.tolist()}; {HINT}")
     for b in bodies:
         f = np.flatnonzero(fine_body == b)
         cand, par, w, reach = _candidates(coarse, b)
@@ -126,13 +135,13 @@ def prolongation(fine_points: np.ndarray, fine_body: np.ndarray,
         hit = next((w_ for w_ in where_far if w_ is not None), None)
         if hit is not None:
             (x, y), d = hit
-            raise ValueError(f"{where}is not a uniform refinement of the coarse mesh: its "
+            raise ValueError(f"{where} is not a uniform refinement of {coarse_name}: its "
                              f"node at ({x:.6g}, {y:.6g}) is {d:.3g} from the nearest vertex, "
-                             f"edge midpoint or cell centre of body {b}")
+                             f"edge midpoint or cell centre of body {b}; {HINT}")
         if (total != 1).any():
-            raise ValueError(f"{where}is not a uniform refinement of the coarse mesh: "
+            raise ValueError(f"{where} is not a uniform refinement of {coarse_name}: "
                              f"{int((total == 0).sum())} of body {b}'s refinement points "
-                             f"have no node, {int((total > 1).sum())} have several")
+                             f"have no node, {int((total > 1).sum())} have several; {HINT}")
     # rows node-major (x, y), each node's parents in ascending order: CSR without a sort
     order = np.argsort(parent, axis=1)
     parent = np.take_along_axis(parent, order, axis=1)
@@ -169,22 +178,29 @@ def prolongations(V, cell_tags, coarse_meshes, fixed_dofs: np.ndarray) -> list[P
     """
     comm = V.mesh.comm
     n_own = dx.owned_dof_count(V) // 2
-    points = dx.dof_coordinates(V)[:n_own, :2]
-    body = np.full(len(dx.dof_coordinates(V)), -1, dtype=np.int64)
+    coords = dx.dof_coordinates(V)
+    points = coords[:n_own, :2]
+    body = np.full(len(coords), -1, dtype=np.int64)
     dofs = dx.cell_dofs(V)
     for k in range(dofs.shape[1]):
         body[dofs[cell_tags.indices, k]] = cell_tags.values
     fixed = np.asarray(fixed_dofs, dtype=np.int64)
     fixed = fixed[fixed < 2 * n_own]
     out = []
-    fine = (points, body[:n_own], dx.dof_count(V) // 2, fixed, "the problem's mesh ")
-    for level in range(len(coarse_meshes) - 1, -1, -1):
-        coarse = coarse_meshes[level]
-        x, b, n_fine, fix, where = fine
-        out.append(prolongation(x, b, coarse, n_fine, comm, fixed=fix, where=where))
-        c0, c1 = _split(len(coarse.points), comm)
-        fine = (coarse.points[c0:c1], coarse.node_body()[c0:c1], len(coarse.points), None,
-                f"coarse mesh {level} ")
+    fine = (points, body[:n_own], dx.dof_count(V) // 2, fixed, "u's mesh")
+    try:
+        for level in range(len(coarse_meshes) - 1, -1, -1):
+            coarse = coarse_meshes[level]
+            x, b, n_fine, fix, where = fine
+            out.append(prolongation(x, b, coarse, n_fine, comm, fixed=fix, where=where,
+                                    coarse_name=f"coarse_meshes[{level}]"))
+            c0, c1 = _split(len(coarse.points), comm)
+            fine = (coarse.points[c0:c1], coarse.node_body()[c0:c1], len(coarse.points),
+                    None, f"coarse_meshes[{level}]")
+    except ValueError:
+        for P in out:
+            P.destroy()
+        raise
     return out
 
 
@@ -202,7 +218,13 @@ def refine_gmsh(model, times: int) -> list[CoarseMesh]:
         The meshes before each refinement, coarsest first: the cells of the physical
         surface groups, each tagged with its group's tag (as DOLFINx's gmsh reader tags
         them).
+
+    Raises:
+        ValueError: ``times`` not a count, or a mesh this hierarchy cannot describe (no
+            physical surface group, cells of second order or of two kinds).
     """
+    if isinstance(times, bool) or not isinstance(times, (int, np.integer)) or times < 0:
+        raise ValueError(f"times = {times!r}: how many refinements, an integer >= 0")
     levels = []
     for _ in range(times):
         tags, xyz, _ = model.mesh.getNodes()
@@ -212,9 +234,17 @@ def refine_gmsh(model, times: int) -> list[CoarseMesh]:
         for dim, tag in model.getPhysicalGroups(2):
             for entity in model.getEntitiesForPhysicalGroup(dim, tag):
                 for etype, _, nodes in zip(*model.mesh.getElements(2, entity)):
-                    k = model.mesh.getElementProperties(etype)[3]
+                    name, _, order, k = model.mesh.getElementProperties(etype)[:4]
+                    if order != 1 or k not in (3, 4):
+                        raise ValueError(f"refine_gmsh: {name} cells in physical surface "
+                                         f"group {tag}: first-order triangles or "
+                                         "quadrilaterals only")
                     cells.append(index[np.asarray(nodes, dtype=np.int64)].reshape(-1, k))
                     body.append(np.full(len(cells[-1]), tag, dtype=np.int32))
+        if not cells or len({c.shape[1] for c in cells}) > 1:
+            raise ValueError("refine_gmsh: the model needs its 2D cells in physical surface "
+                             "groups (the bodies), all triangles or all quadrilaterals"
+                             + (", not both" if cells else ""))
         used, inverse = np.unique(np.vstack(cells), return_inverse=True)
         levels.append(CoarseMesh(xyz.reshape(-1, 3)[used, :2].copy(),
                                  inverse.reshape(-1, cells[0].shape[1]).astype(np.int64),
