@@ -5,7 +5,8 @@ after cuts.
 ``set_load(t)`` puts the loads and prescribed displacements of pseudo-time t on the
 problem; :class:`LoadStepper` solves at each target time, cutting a failed increment in
 half (at most ``max_cuts`` times in a row, not below ``min_increment``) and doubling it
-again after each converged step (never past the next target). What happens is told as
+again after each converged step that needed no cut (one that did is repeated at its size
+first), never past the next target. What happens is told as
 typed events (:class:`StepStarted`, :class:`Retried`, :class:`Cut`, :class:`StepDone`):
 ``on_step`` gets every converged step, ``on_event`` every event (default: a progress line
 per step on rank 0).
@@ -204,7 +205,12 @@ class LoadStepper:
                     if self.on_step is not None:
                         self.on_step(done)
                     self.on_event(done)
-                    dt *= 2.0  # after a cut, grow back towards the scene's increment
+                    # after a cut, grow back towards the scene's increment, but only
+                    # from the second converged increment on: doubled at once it is the
+                    # one that just failed (large sliding at 2M dofs: every step of the
+                    # press was followed by a failed attempt of twice its size)
+                    if cuts == 0:
+                        dt *= 2.0
                     cuts = 0
                     continue
                 self.set_load(self.time)

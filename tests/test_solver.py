@@ -186,3 +186,34 @@ def test_a_cell_inverted_only_at_a_corner_is_not_a_solution(a, inverted):
     assert (why is not None) == inverted
     if inverted:
         assert "1 cell(s)" in why and "'block'" in why
+
+
+def test_after_a_cut_the_increment_grows_from_the_second_converged_step():
+    """Increments above 0.25 fail: from 1.0 the stepper cuts twice, takes 0.25 twice, then
+    doubles (0.5 fails, cut, 0.25 twice). Doubling right after the cut would retry the
+    size that just failed after every converged increment: four failures, not three."""
+    from types import SimpleNamespace
+
+    from fenicsx_mortar.newton import StepResult
+    from fenicsx_mortar.stepping import LoadStepper
+    loads, tried = [0.0], []
+
+    def solve(max_augmentations):
+        inc = loads[-1] - loads[-2]
+        tried.append(inc)
+        if inc > 0.25 + 1e-12:
+            loads.pop()  # set_load(t) of the last converged state follows a failure
+            return StepResult(converged=False, reason="too large")
+        return StepResult(converged=True, iterations=3)
+
+    newton = SimpleNamespace(should_stop=lambda: None, line_search="l2-full", pairs=[])
+    problem = SimpleNamespace(newton=newton, solve=solve)
+    stepper = LoadStepper(problem, loads.append, [1.0], on_event=None)
+
+    def set_load(t):
+        if t != loads[-1]:
+            loads.append(t)
+    stepper.set_load = set_load
+    result = stepper.run()
+    assert result.completed and result.time == 1.0
+    assert tried == [1.0, 0.5, 0.25, 0.25, 0.5, 0.25, 0.25]
