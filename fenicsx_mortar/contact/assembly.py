@@ -441,15 +441,26 @@ def reserve(A: PETSc.Mat, rows: np.ndarray, cols: np.ndarray) -> bool:
     r0, r1 = A.getOwnershipRange()
     own = (rows >= r0) & (rows < r1)
     rows, cols = rows[own] - r0, cols[own]
-    indptr, indices, _ = A.getValuesCSR()
-    P = pattern_with(indptr, indices, A.getSize()[1])
-    missing = np.asarray(P[rows, cols]).ravel() == 0 if len(rows) else np.zeros(0, bool)
+    missing = _missing_slots(A, r0, rows, cols)
     if not comm.allreduce(bool(missing.any()), op=MPI.LOR):
         return False
-    P = pattern_with(P.indptr, P.indices, P.shape[1], rows[missing], cols[missing])
+    indptr, indices, _ = A.getValuesCSR()
+    P = pattern_with(indptr, indices, A.getSize()[1], rows[missing], cols[missing])
     A.setPreallocationCSR((P.indptr.astype(PETSc.IntType), P.indices.astype(PETSc.IntType)))
     A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
     return True
+
+
+def _missing_slots(A: PETSc.Mat, r0: int, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """Which slots (local rows, global columns) the assembled ``A`` lacks, from the rows
+    asked about only (a copy of the whole pattern cost 0.4 s a Newton iteration at 2M dofs
+    on 2 ranks, where the tangents' insertion structure is not remembered)."""
+    if not len(rows):
+        return np.zeros(0, dtype=bool)
+    n = np.int64(A.getSize()[1])
+    have = [np.asarray(A.getRow(int(r0 + r))[0], dtype=np.int64) + n * r
+            for r in np.unique(rows).astype(np.int64)]
+    return ~np.isin(rows.astype(np.int64) * n + cols.astype(np.int64), np.concatenate(have))
 
 
 def add_to_matrix(A: PETSc.Mat, K: sp.spmatrix, dofs: np.ndarray, skip: np.ndarray,
