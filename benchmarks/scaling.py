@@ -13,14 +13,15 @@ runs it in a fresh process (under ``mpirun -n 2`` with ``--ranks 2``), stores it
     scaling: case=hertz dofs=1961796 solver=amg newton=9 s_per_newton=... assembly_s=...
              peak_mib=... total_s=...
 
-(dofs as built; wall seconds: s_per_newton = the load steps' wall time over the Newton
-iterations, assembly_s = one bulk Jacobian assembly, timed after the solve, the slowest
-rank; peak_mib = the largest peak resident memory of a rank; total_s = the process from
-its start, meshing included, to the end of the solve.) ``--all`` runs every configuration
-not stored yet, one at a time; ``--report`` prints the table, writes it into
-docs/performance.md between its ``scaling`` markers (keeping the rows there whose
-configuration has no record in ``--work``: measured earlier, elsewhere) and draws
-docs/scaling.png (time per Newton iteration against dofs).
+(dofs as built; newton = the Newton iterations of the converged steps; wall seconds:
+s_per_newton = the load steps' wall time over every Newton iteration done, those of
+failed attempts (before a cut) included, assembly_s = one bulk Jacobian assembly, timed
+after the solve, the slowest rank; peak_mib = the largest peak resident memory of a rank;
+total_s = the process from its start, meshing included, to the end of the solve.)
+``--all`` runs every configuration not stored yet, one at a time; ``--report`` prints the
+table, writes it into docs/performance.md between its ``scaling`` markers (keeping the
+rows there whose configuration has no record in ``--work``: measured earlier, elsewhere)
+and draws docs/scaling.png (time per Newton iteration against dofs).
 
 Solvers: ``mumps`` the saddle point [u, λ] with MUMPS (the default), ``condensed-mumps``
 the condensed displacement system with MUMPS, ``amg`` the condensed system with GMRES and
@@ -34,7 +35,8 @@ structured grids scaled to the size, pressed in two steps and turned by 5 % and 
 its full turn (the slave slides along the master, past new master nodes: the contact
 couplings change as it goes).
 
-Recorded per run: Newton iterations, linear (Krylov) iterations per Newton step, wall and
+Recorded per run: Newton iterations (of the converged steps, and of the failed attempts:
+the table's "+ k failed"), linear (Krylov) iterations per Newton step, wall and
 CPU seconds by phase (bulk assembly, contact — the condensation included —, linear solve),
 per Newton iteration, peak memory of every rank, the load average at the end, and the
 nodal pressures (for the comparison between solvers: ``--report`` prints their largest
@@ -144,6 +146,16 @@ def worker(case: str, dofs: int, solver: str, out_json: Path) -> None:
         return its, reason
 
     condensation.CondensedSystem.solve = count
+    # every Newton iteration done, a failed attempt's (before its increment was cut) too
+    attempted: list[int] = []
+    solve_step = newton.NewtonSolver.solve_step
+
+    def counted(self, *args, **kwargs):
+        res = solve_step(self, *args, **kwargs)
+        attempted.append(int(res.iterations))
+        return res
+
+    newton.NewtonSolver.solve_step = counted
     steps_clock = {"wall": 0.0, "cpu": 0.0}
     run_steps = stepping.LoadStepper.run
 
@@ -186,8 +198,9 @@ def worker(case: str, dofs: int, solver: str, out_json: Path) -> None:
         "steps": len(res.steps), "newton": n_newton,
         "newton_per_step": [s["newton_iterations"] for s in res.steps],
         "cuts": sum(s["cuts"] for s in res.steps),
-        "linear_its": linear_its or [1] * n_newton,
-        "s_per_newton": per_rank[0]["steps_wall"] / max(n_newton, 1),
+        "linear_its": linear_its or [1] * sum(attempted),
+        "newton_attempted": sum(attempted),
+        "s_per_newton": per_rank[0]["steps_wall"] / max(sum(attempted), 1),
         "assembly_s": assembly, "peak_mib": max(peak), "peak_mib_per_rank": peak,
         "total_s": total, "per_rank": per_rank,
         "load_average_at_end": os.getloadavg(), "host_cpus": os.cpu_count(),
@@ -254,6 +267,12 @@ def pressure_difference(r: dict, runs: list[dict]) -> tuple[float, str] | None:
     return None
 
 
+def newton_cell(r: dict) -> str:
+    """The Newton iterations of the converged steps, and those of failed attempts."""
+    failed = r.get("newton_attempted", r["newton"]) - r["newton"]
+    return f"{r['newton']}" + (f" + {failed} failed" if failed else "")
+
+
 #: the phases of the table; the library times bulk assembly and the linear solve by wall
 #: clock only (newton.py), so their CPU column is "—"
 PHASES = ("bulk_assembly", "contact", "linear_solve")
@@ -270,14 +289,14 @@ def table(runs: list[dict]) -> str:
         if "row" in r:
             lines.append(r["row"])
             continue
-        n = max(r["newton"], 1)
+        n = max(r.get("newton_attempted", r["newton"]), 1)
         w, c = r["per_rank"][0]["wall"], r["per_rank"][0]["cpu"]
         its = r["linear_its"]
         diff = pressure_difference(r, runs)
         lines.append(
             f"| {r['case']} | {r['dofs']:,} "
             f"| {r['solver'] if r['converged'] else r['solver'] + ' (did not complete)'} "
-            f"| {r['ranks']} | {r['newton']} "
+            f"| {r['ranks']} | {newton_cell(r)} "
             f"| {sum(its) / len(its):.1f}, {max(its)} "
             f"| {r['s_per_newton']:.2f} "
             f"| {w.get('bulk_assembly', 0) / n:.2f} / {w.get('contact', 0) / n:.2f} / "

@@ -33,6 +33,7 @@ from . import petsc_options as po
 from .acceptance import Acceptance
 from .condensation import condensable, multigrid
 from .condensation.multigrid import CoarseMesh
+from .contact.assembly import reserve
 from .newton import NewtonSolver, StepResult
 from .settings import SolverSettings, check_number
 from .system import resolve_linear_solver
@@ -139,6 +140,11 @@ class ContactProblem:
             with self.timings("contact_setup"):
                 blocks = [b for p in self.pairs for b in p.couplings()]
                 matrix = dx.matrix_with_couplings(self.jacobian, u.function_space, blocks)
+                if matrix.getComm().getSize() > 1:
+                    # couplings of nodes on different ranks: DOLFINx's pattern holds a
+                    # rank's own and ghost nodes only; without these the Jacobian grew, and
+                    # MUMPS analysed it afresh, at every Newton iteration (Hertz, 2 ranks)
+                    reserve(matrix, *_all_to_all(blocks))
         #: the Newton driver (newton.py): SNES callbacks, convergence rule, state
         self.newton = NewtonSolver(self.residual, self.jacobian, u, self.bcs, settings,
                                    self.pairs, self.timings, matrix,
@@ -336,6 +342,16 @@ def _check_multigrid(settings: SolverSettings, multipliers: bool, coarse_meshes,
         if unused:
             raise ValueError(f"coarse_meshes[{i}]: {unused} of its points are in no cell "
                              "(a coarse node without a cell has no equation): remove them")
+
+
+def _all_to_all(blocks: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """The global (rows, columns) of node blocks coupled all to all (2 dofs a node)."""
+    rows, cols = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
+    for blk in blocks:
+        d = (2 * np.asarray(blk, dtype=np.int64)[:, None] + np.arange(2)).ravel()
+        rows.append(np.repeat(d, len(d)))
+        cols.append(np.tile(d, len(d)))
+    return np.concatenate(rows), np.concatenate(cols)
 
 
 def _as_tuple(value, key: str, what: str) -> tuple:

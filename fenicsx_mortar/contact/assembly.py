@@ -501,7 +501,10 @@ def add_to_matrix(A: PETSc.Mat, K: sp.spmatrix, dofs: np.ndarray, skip: np.ndarr
         A.setValuesIJV(pat.indptr, pat.indices, vals, addv=PETSc.InsertMode.ADD,
                        rowmap=pat.rows)
         return
-    keep = (K.data != 0.0) & structural
+    # explicit zeros too: new_slots reserved their slots, and a slot left empty is dropped
+    # at the assembly's end, to be reserved again (on 2 ranks the Jacobian grew, and MUMPS
+    # analysed it afresh, at every Newton iteration)
+    keep = structural
     r, c, v = r[keep], dofs[K.col[keep]], K.data[keep]
     own = (r >= r0) & (r < r1)
     # owned rows in one CSR call (its rows count from the ownership range start)
