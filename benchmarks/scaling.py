@@ -336,19 +336,6 @@ def plot(runs: list[dict], path: Path) -> None:
     fig.savefig(path, dpi=120)
 
 
-def row_key(row: str) -> tuple:
-    """The configuration of a table row.
-
-    Args:
-        row: A row of the table (markdown).
-
-    Returns:
-        (case, dofs, solver, N).
-    """
-    cells = [c.strip() for c in row.strip().strip("|").split("|")]
-    return cells[0], int(cells[1].replace(",", "")), cells[2].split(" (")[0], int(cells[3])
-
-
 def kept_rows(doc_text: str, runs: list[dict]) -> list[dict]:
     """The rows of the table in ``doc_text`` whose configuration has no record in ``runs``
     (measured on another machine or day, their records not here).
@@ -366,10 +353,11 @@ def kept_rows(doc_text: str, runs: list[dict]) -> list[dict]:
     have = {(r["case"], r["dofs"], r["solver"], r["ranks"]) for r in runs}
     out = []
     for row in body.strip().splitlines()[2:]:
-        case, dofs, solver, ranks = key = row_key(row)
-        if key in have:
-            continue
         cells = [c.strip() for c in row.strip().strip("|").split("|")]
+        case, dofs = cells[0], int(cells[1].replace(",", ""))
+        solver, ranks = cells[2].split(" (")[0], int(cells[3])
+        if (case, dofs, solver, ranks) in have:
+            continue
         out.append({"case": case, "dofs": dofs, "solver": solver, "ranks": ranks,
                     "s_per_newton": float(cells[6]), "assembly_s": float(cells[9]),
                     "row": row})

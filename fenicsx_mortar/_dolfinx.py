@@ -509,8 +509,10 @@ def measures(msh: Mesh, cell_tags, facet_tags, degree: int):
 def matrix_with_couplings(a_form, V, blocks: list[np.ndarray]) -> PETSc.Mat:
     """The Jacobian matrix: the form's sparsity plus the extra couplings ``blocks`` (each:
     global node-block numbers of V that couple all-to-all), written once with zeros so
-    PETSc keeps the slots. Couplings beyond the prediction (large sliding) still go in, by
-    dynamic allocation.
+    PETSc keeps the slots. Under MPI only couplings among the nodes a rank holds (owned or
+    ghost) enter DOLFINx's pattern; the others are the caller's to reserve
+    (ContactProblem: contact.assembly.reserve). Couplings beyond the prediction (large
+    sliding) still go in, by dynamic allocation.
 
     The bulk form is assembled once (flush only) so that its slots are written too: a final
     assembly squeezes every preallocated slot not written yet, and the first Jacobian would
