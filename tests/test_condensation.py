@@ -271,7 +271,8 @@ def test_a_weak_amg_hands_over_to_a_factorization(monkeypatch):
     ref, _ = solved(scene_variant("half_rings", "mumps"))
     original = ksp.Lag.__init__
     monkeypatch.setattr(ksp.Lag, "__init__",
-                        lambda self, keep=0.5, slow=1e3: original(self, keep, slow))
+                        lambda self, keep=0.5, slow=1e3, moved=None:
+                        original(self, keep, slow, moved))
     with pytest.warns(UserWarning, match="kept MUMPS factorization"):
         weak, kind = solved(scene_variant("half_rings", "gmres-gamg"))
     assert kind == ("CondensedSystem", "gmres-gamg")
@@ -372,7 +373,8 @@ p = {}
 for solver in ("mumps", "gmres-gamg"):
     if solver == "gmres-gamg":
         init = ksp.Lag.__init__
-        ksp.Lag.__init__ = lambda self, keep=0.5, slow=1e3: init(self, keep, slow)
+        ksp.Lag.__init__ = (lambda self, keep=0.5, slow=1e3, moved=None:
+                            init(self, keep, slow, moved))
     with warnings.catch_warnings(record=True) as seen:
         warnings.simplefilter("always")
         res = solve(scene_variant("half_rings", solver), log=lambda s: None)

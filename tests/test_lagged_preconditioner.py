@@ -97,3 +97,44 @@ def test_a_weak_preconditioner_hands_over_to_a_kept_factorization():
         M2.destroy()
     for obj in (amg, direct, M):
         obj.destroy()
+
+
+def _held(S: np.ndarray, k: float = 1e3) -> sp.csr_matrix:
+    """laplacian(1) with the nodes S held by springs of stiffness k (a contact set)."""
+    d = np.zeros(N * N)
+    d[S] = k
+    return sp.csr_matrix(laplacian(1.0) + sp.diags(d))
+
+
+def test_a_preconditioner_built_before_the_contact_set_took_hold_is_rebuilt():
+    """With ``moved`` (the geometric multigrid's rule), a preconditioner built while other
+    multipliers were constrained is rebuilt when more than that fraction of them changed,
+    and kept when fewer did. Here the preconditioner is an exact factorization, so a
+    fresh one solves in one iteration and a stale one (the springs missing) takes more."""
+    rtol = 1e-10
+    b = np.random.default_rng(2).standard_normal(N * N)
+    S = np.arange(20 * N, 20 * N + 20)
+    steps = ((np.zeros(0, dtype=np.int64), False), (S, True), (S[:-1], False))
+    its_of = {}
+    for moved in (0.25, None):
+        ksp = gmres("lu", rtol)
+        lag = Lag(moved=moved)
+        its_of[moved] = []
+        for active, changed in steps:
+            A = _held(active)
+            M = petsc(A)
+            ksp.setOperators(M)
+            f, y = M.createVecs()
+            f.array[:] = b
+            lag.constrained(active)
+            assert lag.reuse == (len(its_of[moved]) > 0 and (moved is None or not changed))
+            its, reason = solve_lagged(ksp, lag, f, y)
+            assert reason > 0
+            assert np.linalg.norm(A @ y.array - b) <= 1.01 * rtol * np.linalg.norm(b)
+            its_of[moved].append(its)
+            M.destroy()
+        ksp.destroy()
+    # rebuilt on the held set: one iteration; the factorization without the springs: more
+    assert its_of[0.25][1] == 1 < its_of[None][1]
+    # one spring of twenty let go: the kept factorization, a few iterations
+    assert 1 < its_of[0.25][2] <= 6

@@ -146,6 +146,8 @@ class CondensedSystem(KcPattern, MultiplierSystem):
             self._insert(self.Kc, rows[coo.row], coo.col, coo.data)
             self.Kc.assemble()
         self._elim, self._delta = elim, (rows, D)
+        if self.lag is not None:
+            self.lag.constrained(np.sort(elim.H))
         self._B, self._Cu, self._Cl = sp.csc_matrix(B), sp.csr_matrix(Cu), sp.csr_matrix(Cl)
         # the columns of P K, ∂C_E/∂u and Y G, compressed, for the recovery of Δu_P, Δλ
         cols = np.unique(np.concatenate([PK.indices, elim.Cu_E.indices]).astype(np.int64))
@@ -398,7 +400,13 @@ class CondensedSystem(KcPattern, MultiplierSystem):
         krylov = self.inner.getType() != PETSc.KSP.Type.PREONLY
         self.forcing = (Forcing(applied.settings.atol)
                         if krylov and "ksp_rtol" not in applied.options else None)
-        self.lag = Lag() if krylov else None
+        self.lag = (Lag(moved=MG_REBUILD_MOVED if self._prolongations else None)
+                    if krylov else None)
+
+
+#: the fraction of the constrained multipliers that may change before a multigrid's
+#: Galerkin operators are rebuilt (Lag; Hertz 2M: rebuilt at the 2nd and 4th of 7)
+MG_REBUILD_MOVED = 0.25
 
 
 def _compress(A: sp.csr_matrix, cols: np.ndarray) -> sp.csr_matrix:
