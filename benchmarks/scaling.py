@@ -16,8 +16,8 @@ runs it in a fresh process (under ``mpirun -n 2`` with ``--ranks 2``), stores it
 (dofs as built; newton = the Newton iterations of the converged steps; wall seconds:
 s_per_newton = the load steps' wall time over every Newton iteration done, those of
 failed attempts (before a cut) included, assembly_s = one bulk Jacobian assembly, timed
-after the solve (the median of 5), the slowest rank; peak_mib = the largest peak resident memory of a rank;
-total_s = the process from its start, meshing included, to the end of the solve.)
+after the solve (the median of 5), the slowest rank; peak_mib = the largest peak resident
+memory of a rank; total_s = the process from its start, meshing included, to the end of the solve.)
 ``--all`` runs every configuration not stored yet, one at a time; ``--report`` prints the
 table, writes it into docs/performance.md between its ``scaling`` markers (keeping the
 rows there whose configuration has no record in ``--work``: measured earlier, elsewhere)

@@ -66,6 +66,31 @@ def test_prolongation_interpolates_linearly(refined_twice):
                 assert err[on_arc].max() <= np.abs(A).sum(axis=1).max() * 0.1 ** 2 / 8
 
 
+def test_the_finest_prolongation_leaves_dirichlet_dofs_alone(refined_twice):
+    """The rows of the Dirichlet dofs in the finest prolongation are zero (the coarse
+    correction must not move a held dof); every other row still interpolates a constant
+    exactly, and the coarser prolongation keeps all its rows."""
+    dom, V = refined_twice
+    n_own = dx.owned_dof_count(V)
+    fine = dx.dof_coordinates(V)[: n_own // 2]
+    # the x component of the nodes in the lowest tenth of the block, the y of the rest
+    low = np.flatnonzero(fine[:, 1] < fine[:, 1].min() + 0.1 * np.ptp(fine[:, 1]))
+    fixed = np.concatenate([2 * low, 2 * np.setdiff1d(np.arange(len(fine)), low)[::7] + 1])
+    Ps = prolongations(V, dom.cell_tags, dom.coarse_meshes, fixed.astype(np.int32))
+    for P, held in zip(Ps, (fixed, np.zeros(0, dtype=np.int64))):
+        ones = P.createVecRight()
+        ones.set(1.0)
+        uf = P.createVecLeft()
+        P.mult(ones, uf)
+        free = np.setdiff1d(np.arange(len(uf.array)), held)
+        assert np.all(uf.array[held] == 0.0)
+        assert np.abs(uf.array[free] - 1.0).max() <= 1e-12
+        indptr = P.getValuesCSR()[0]
+        assert np.all(np.diff(indptr)[held] == 0)
+    for P in Ps:
+        P.destroy()
+
+
 def test_a_mesh_not_refined_from_the_coarse_one_is_refused(refined_twice):
     """Coarse meshes that the mesh was not refined from: one node per refinement point is
     checked, so a shifted mesh or a missing body is named."""
